@@ -1,0 +1,194 @@
+"""Demonstration datasets: one compressed .npz per episode plus `metadata.json`.
+
+Layout of a dataset folder:
+    metadata.json            config, versions, label schemes, and per split the list of
+                             episodes with seed, frame count and sha256 of the file
+    episodes/seed_000042.npz  one episode (see `Episode` for the arrays inside)
+
+Files are written atomically (temporary name, then rename), so an interrupted collection
+never leaves a half-written episode behind, and every read checks the recorded sha256 so
+a corrupt or truncated file is reported by name instead of feeding garbage to training.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .subtasks import SCHEMES
+
+METADATA_FILE = "metadata.json"
+FORMAT = "inest-demonstrations"
+FORMAT_VERSION = 1
+SPLITS = ("train", "valid")
+
+
+class DatasetError(RuntimeError):
+    """A dataset file is missing, corrupt, or does not match its metadata."""
+
+
+@dataclass
+class Episode:
+    """One demonstration. Frames: T + 1 (the reset frame, then one per action); actions: T."""
+
+    seed: int
+    ego: np.ndarray  # (T+1, S, S, 3) uint8, egocentric camera
+    allo: np.ndarray  # (T+1, S, S, 3) uint8, allocentric camera
+    actions: np.ndarray  # (T, 3) float32: speed, turn, grip in [-1, 1]
+    states: np.ndarray  # (T+1, D) float32, entries named by env.STATE_FIELDS
+    rewards: np.ndarray  # (T,) float32, the environment's dense oracle reward
+    progress: np.ndarray  # (T+1,) int8, correctly ordered blocks in the goal
+    labels: dict[int, np.ndarray]  # scheme -> (T+1,) int8 subtask label per frame
+    ends: dict[int, np.ndarray]  # scheme -> (scheme,) int32 frame index where each subtask ends
+    text: np.ndarray  # (T+1,) str, the thesis's 3-subtask description of each frame
+
+    def __len__(self) -> int:
+        return len(self.ego)
+
+    def frames(self, view: str) -> np.ndarray:
+        if view not in ("ego", "allo"):
+            raise ValueError(f"unknown view {view!r}; expected 'ego' or 'allo'")
+        return self.ego if view == "ego" else self.allo
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        arrays = {
+            "seed": np.int64(self.seed),
+            "ego": self.ego,
+            "allo": self.allo,
+            "actions": self.actions,
+            "states": self.states,
+            "rewards": self.rewards,
+            "progress": self.progress,
+            "text": self.text,
+        }
+        for scheme in SCHEMES:
+            arrays[f"labels_{scheme}"] = self.labels[scheme]
+            arrays[f"ends_{scheme}"] = self.ends[scheme]
+        return arrays
+
+    @classmethod
+    def from_arrays(cls, arrays: Any) -> Episode:
+        return cls(
+            seed=int(arrays["seed"]),
+            ego=arrays["ego"],
+            allo=arrays["allo"],
+            actions=arrays["actions"],
+            states=arrays["states"],
+            rewards=arrays["rewards"],
+            progress=arrays["progress"],
+            labels={s: arrays[f"labels_{s}"] for s in SCHEMES},
+            ends={s: arrays[f"ends_{s}"] for s in SCHEMES},
+            text=arrays["text"],
+        )
+
+
+def sha256_of(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for chunk in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def write_atomic(path: Path, write: Any) -> None:
+    """Call `write(temporary_path)`, then move the result into place in one rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".{path.name}.tmp")
+    try:
+        write(temporary)
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+
+
+def write_episode(path: Path, episode: Episode) -> str:
+    """Write one episode file; returns its sha256 for the metadata."""
+
+    def save(temporary: Path) -> None:
+        with open(temporary, "wb") as handle:
+            np.savez_compressed(handle, **episode.to_arrays())
+
+    write_atomic(path, save)
+    return sha256_of(path)
+
+
+def check_episode_file(path: Path, sha256: str) -> None:
+    if not path.is_file():
+        raise DatasetError(f"missing episode file {path}")
+    if sha256_of(path) != sha256:
+        raise DatasetError(f"corrupt episode file {path}: its sha256 does not match metadata.json")
+
+
+def read_episode(path: Path, sha256: str | None = None) -> Episode:
+    """Load one episode, checking it against the recorded sha256 when given."""
+    if sha256 is not None:
+        check_episode_file(path, sha256)
+    elif not path.is_file():
+        raise DatasetError(f"missing episode file {path}")
+    try:
+        with np.load(path, allow_pickle=False) as arrays:
+            return Episode.from_arrays({key: arrays[key] for key in arrays.files})
+    except (zipfile.BadZipFile, ValueError, KeyError, OSError, EOFError) as error:
+        raise DatasetError(f"corrupt episode file {path}: {error}") from error
+
+
+def write_metadata(root: Path, metadata: dict[str, Any]) -> None:
+    def save(temporary: Path) -> None:
+        temporary.write_text(json.dumps(metadata, indent=2, sort_keys=True) + "\n")
+
+    write_atomic(root / METADATA_FILE, save)
+
+
+def read_metadata(root: Path) -> dict[str, Any]:
+    path = root / METADATA_FILE
+    if not path.is_file():
+        raise DatasetError(f"no dataset at {root}: {METADATA_FILE} is missing")
+    try:
+        metadata = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise DatasetError(f"corrupt {path}: {error}") from error
+    if metadata.get("format") != FORMAT or metadata.get("format_version") != FORMAT_VERSION:
+        raise DatasetError(f"{path} is not an {FORMAT} v{FORMAT_VERSION} dataset")
+    return metadata
+
+
+class DemoDataset:
+    """Read access to a finished dataset: `dataset.load("train", 3)` or iterate a split."""
+
+    def __init__(self, root: str | Path) -> None:
+        self.root = Path(root)
+        self.metadata = read_metadata(self.root)
+        if not self.metadata.get("complete", False):
+            raise DatasetError(f"dataset at {self.root} is incomplete; finish it by running the collector again")
+
+    def entries(self, split: str) -> list[dict[str, Any]]:
+        if split not in SPLITS:
+            raise ValueError(f"unknown split {split!r}; expected one of {SPLITS}")
+        return self.metadata["episodes"][split]
+
+    def __len__(self) -> int:
+        return sum(len(self.entries(split)) for split in SPLITS)
+
+    def load(self, split: str, index: int) -> Episode:
+        entries = self.entries(split)
+        if not 0 <= index < len(entries):
+            raise IndexError(f"{split} split has {len(entries)} episodes, no index {index}")
+        entry = entries[index]
+        return read_episode(self.root / entry["file"], entry["sha256"])
+
+    def iter_split(self, split: str):
+        for index in range(len(self.entries(split))):
+            yield self.load(split, index)
+
+    def verify(self) -> None:
+        """Check every file against metadata.json; raises DatasetError naming the first bad one."""
+        for split in SPLITS:
+            for entry in self.entries(split):
+                check_episode_file(self.root / entry["file"], entry["sha256"])

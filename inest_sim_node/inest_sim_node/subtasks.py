@@ -1,0 +1,71 @@
+"""Per-frame subtask labels for the three decompositions the thesis studies (1, 3, 6 subtasks).
+
+A frame's label is the subtask being worked on when the frame was reached: the frame on
+which subtask i completes still carries label i, the next frame carries i + 1. So the last
+frame labelled i is where subtask i ends, which is what goal embeddings are averaged over.
+- 1 subtask: the whole task (XIRL); it completes when all three blocks count.
+- 3 subtasks: one per block in task order; block k completes when the ordered progress reaches k + 1.
+- 6 subtasks: per block, reach/grasp (completes when the block first sits in the gripper
+  while it is the current block) then push (completes when it counts in the goal).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .world import BLOCK_COLOURS
+
+SCHEMES = (1, 3, 6)
+
+DESCRIPTIONS: dict[int, tuple[str, ...]] = {
+    1: ("The robot pushes the red, then the blue, then the yellow block into the green zone",),
+    3: tuple(f"The robot pushes the {c} block into the green zone" for c in BLOCK_COLOURS),
+    6: tuple(
+        text
+        for c in BLOCK_COLOURS
+        for text in (
+            f"The robot reaches and grasps the {c} block",
+            f"The robot pushes the {c} block into the green zone",
+        )
+    ),
+}
+
+
+def completed_subtasks(progress: np.ndarray, held: np.ndarray, scheme: int) -> np.ndarray:
+    """Number of subtasks completed at each frame (never decreasing).
+
+    `progress[t]` is the ordered block count at frame t, `held[t]` whether the current
+    block sits in the gripper at frame t.
+    """
+    progress = np.asarray(progress, dtype=np.int64)
+    num_blocks = len(BLOCK_COLOURS)
+    if scheme == 1:
+        done = (progress >= num_blocks).astype(np.int64)
+    elif scheme == 3:
+        done = progress.copy()
+    elif scheme == 6:
+        reached = np.zeros_like(progress)
+        latched = False
+        for t in range(len(progress)):
+            if t > 0 and progress[t] != progress[t - 1]:
+                latched = False
+            latched = latched or bool(held[t])
+            reached[t] = 1 if latched and progress[t] < num_blocks else 0
+        done = 2 * progress + reached
+    else:
+        raise ValueError(f"unknown subtask scheme {scheme}; expected one of {SCHEMES}")
+    return np.maximum.accumulate(done)
+
+
+def subtask_labels(progress: np.ndarray, held: np.ndarray, scheme: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-frame labels in [0, scheme) and, per subtask, the frame on which it ends.
+
+    A subtask that never completes ends on the last frame.
+    """
+    done = completed_subtasks(progress, held, scheme)
+    labels = np.minimum(np.concatenate([[0], done[:-1]]), scheme - 1).astype(np.int8)
+    last = len(done) - 1
+    ends = np.array(
+        [int(np.argmax(done >= i + 1)) if done[-1] >= i + 1 else last for i in range(scheme)], dtype=np.int32
+    )
+    return labels, ends

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Create the virtual environment (default .venv, or $INEST_VENV) and install everything pinned.
+# Re-running is cheap: it reinstalls only when a requirements or setup file changed.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="${INEST_VENV:-$ROOT/.venv}"
+PYTHON="${PYTHON:-$(command -v python3.11 || command -v python3)}"
+"$PYTHON" -c 'import sys; sys.exit(sys.version_info < (3, 11))' \
+  || { echo "setup_env: Python 3.11 or newer is needed, $PYTHON is $("$PYTHON" --version)" >&2; exit 1; }
+
+cd "$ROOT"
+STAMP="$(cat requirements.txt requirements-dev.txt scripts/setup_env.sh inest_*/setup.py inest_*/setup.cfg | sha256sum | cut -d' ' -f1)"
+[ -x "$VENV/bin/python" ] || "$PYTHON" -m venv "$VENV"
+if [ "$(cat "$VENV/.inest-stamp" 2>/dev/null)" != "$STAMP" ]; then
+  echo "setup_env: installing pinned dependencies into $VENV" >&2
+  "$VENV/bin/python" -m pip install -q --upgrade pip
+  "$VENV/bin/python" -m pip install -q torch==2.13.0
+  "$VENV/bin/python" -m pip install -q -r requirements.txt -r requirements-dev.txt
+  "$VENV/bin/python" -m pip install -q --no-deps -e inest_sim_node -e inest_reward_node -e inest_agent_node
+  echo "$STAMP" > "$VENV/.inest-stamp"
+fi

@@ -22,4 +22,10 @@ setup(
     ),
     license="Apache-2.0",
     python_requires=">=3.11",
+    entry_points={
+        "console_scripts": [
+            "inest-pretrain = inest_reward_node.pretrain:main",
+            "inest-reward-quality = inest_reward_node.quality:main",
+        ],
+    },
 )

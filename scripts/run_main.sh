@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The main job, from a fresh clone: set up .venv, collect a small demonstration dataset
-# (cached: re-running resumes or reuses it) and write a GIF of one expert episode.
+# The main job, from a fresh clone: set up .venv, collect a small demonstration dataset, write a
+# GIF of one expert episode, pretrain a small TCC reward model on it and write its reward-quality
+# report. Every step is cached: re-running reuses (or resumes) what is already in runs/.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$ROOT/scripts/setup_env.sh"
@@ -8,3 +9,10 @@ BIN="${INEST_VENV:-$ROOT/.venv}/bin"
 cd "$ROOT"
 "$BIN/inest-collect-demos" --out runs/demos-small --episodes "${INEST_EPISODES:-20}"
 "$BIN/inest-export-video" runs/demos-small --out runs/expert_episode.gif
+if [ ! -f runs/pretrain-small/model/model.json ]; then
+  RESUME=()
+  [ -f runs/pretrain-small/config.json ] && RESUME=(--resume)
+  "$BIN/inest-pretrain" runs/demos-small --out runs/pretrain-small \
+    --iterations "${INEST_PRETRAIN_ITERATIONS:-300}" "${RESUME[@]}"
+fi
+"$BIN/inest-reward-quality" runs/pretrain-small/model runs/demos-small --out runs/quality-small

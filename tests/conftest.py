@@ -20,3 +20,35 @@ def env() -> SweepToTopEnv:
     environment = SweepToTopEnv(config=EnvConfig())
     yield environment
     environment.close()
+
+
+@pytest.fixture(scope="session")
+def tiny_demos(tmp_path_factory):
+    """Ten expert demonstrations (8 train, 2 valid) at 48 px, shared by the representation tests."""
+    from inest_sim_node.collect import CollectConfig, collect_dataset
+
+    root = tmp_path_factory.mktemp("tiny_demos")
+    collect_dataset(root, CollectConfig(episodes=10, valid_fraction=0.2, image_size=48, workers=1), show_progress=False)
+    return root
+
+
+@pytest.fixture(scope="session")
+def tiny_tcc_run(tiny_demos, tmp_path_factory):
+    """A TCC run of a few iterations on the tiny dataset: (config, run folder)."""
+    from inest_reward_node.encoders import EncoderConfig
+    from inest_reward_node.pretrain import PretrainConfig, pretrain
+
+    config = PretrainConfig(
+        dataset=str(tiny_demos),
+        encoder=EncoderConfig(image_size=48),
+        iterations=40,
+        videos_per_batch=6,
+        frames_per_video=16,
+        validate_every=10,
+        validation_batches=1,
+        checkpoint_every=10,
+        learning_rate=1e-3,
+    )
+    run_dir = tmp_path_factory.mktemp("tcc_run")
+    pretrain(config, run_dir, progress_bar=False)
+    return config, run_dir

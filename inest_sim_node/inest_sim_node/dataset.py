@@ -146,17 +146,21 @@ def write_metadata(root: Path, metadata: dict[str, Any]) -> None:
     write_atomic(root / METADATA_FILE, save)
 
 
-def read_metadata(root: Path) -> dict[str, Any]:
-    path = root / METADATA_FILE
+def read_versioned_json(path: Path, fmt: str, version: int, what: str, error: type[Exception]) -> dict[str, Any]:
+    """Read a JSON document that declares its format; `error` names the problem if it does not parse or match."""
     if not path.is_file():
-        raise DatasetError(f"no dataset at {root}: {METADATA_FILE} is missing")
+        raise error(f"no {what} at {path.parent}: {path.name} is missing")
     try:
-        metadata = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise DatasetError(f"corrupt {path}: {error}") from error
-    if metadata.get("format") != FORMAT or metadata.get("format_version") != FORMAT_VERSION:
-        raise DatasetError(f"{path} is not an {FORMAT} v{FORMAT_VERSION} dataset")
-    return metadata
+        document = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as reason:
+        raise error(f"corrupt {path}: {reason}") from reason
+    if not isinstance(document, dict) or document.get("format") != fmt or document.get("format_version") != version:
+        raise error(f"{path} is not an {fmt} v{version} {what}")
+    return document
+
+
+def read_metadata(root: Path) -> dict[str, Any]:
+    return read_versioned_json(root / METADATA_FILE, FORMAT, FORMAT_VERSION, "dataset", DatasetError)
 
 
 class DemoDataset:

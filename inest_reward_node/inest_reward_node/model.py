@@ -1,0 +1,153 @@
+"""Trained reward models on disk and in memory.
+
+A model folder holds `weights.safetensors` (tensors only, nothing executable) and
+`model.json`: method, encoder config, input size, camera view, hash of the training
+dataset, and per subtask scheme the goal embeddings, XIRL distance scale and completion
+thresholds. Loading checks the caller's expectations (view, size, scheme) against it.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from inest_sim_node.dataset import read_versioned_json, write_atomic
+from safetensors import SafetensorError
+from safetensors.torch import load_file, save_file
+from torch import nn
+
+from .encoders import EncoderConfig, build_encoder, frames_to_tensor, resize_frames
+from .holdr import HoldR, HoldRConfig
+from .shaping import ShapingConfig
+
+MODEL_FORMAT = "inest-reward-model"
+MODEL_FORMAT_VERSION = 1
+WEIGHTS_FILE = "weights.safetensors"
+MODEL_FILE = "model.json"
+METHODS = ("tcc", "holdr")
+
+
+class ModelError(RuntimeError):
+    """A model folder is missing, corrupt, or does not match what the caller needs."""
+
+
+def build_network(method: str, encoder: EncoderConfig, holdr: HoldRConfig | None = None) -> nn.Module:
+    if method == "tcc":
+        return build_encoder(encoder)
+    if method == "holdr":
+        network = HoldR(holdr or HoldRConfig(), encoder.image_size)
+        return network.to(memory_format=torch.channels_last) if encoder.channels_last else network
+    raise ValueError(f"unknown method {method!r}; expected one of {METHODS}")
+
+
+@dataclass
+class SubtaskGoals:
+    goals: np.ndarray  # (subtasks, D)
+    thresholds: list[float]  # on the method's per-frame reward, one per subtask
+    distance_scale: float  # XIRL: 1 / mean distance from first frames to the final goal
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "goals": self.goals.tolist(),
+            "thresholds": self.thresholds,
+            "distance_scale": self.distance_scale,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> SubtaskGoals:
+        return cls(np.asarray(data["goals"], dtype=np.float32), list(data["thresholds"]), float(data["distance_scale"]))
+
+
+class RewardModel:
+    """A frozen network plus what it was calibrated with; embeds frames in batches."""
+
+    def __init__(self, network: nn.Module, metadata: dict[str, Any]) -> None:
+        self.network = network.eval()
+        self.metadata = metadata
+        self.method: str = metadata["method"]
+        self.view: str = metadata["view"]
+        self.encoder_config = EncoderConfig(**metadata["encoder"])
+        self.shaping = ShapingConfig(**metadata["shaping"])
+        self.subtasks = {int(scheme): SubtaskGoals.from_dict(goals) for scheme, goals in metadata["subtasks"].items()}
+
+    @property
+    def image_size(self) -> int:
+        return self.encoder_config.image_size
+
+    def goals(self, scheme: int) -> SubtaskGoals:
+        if scheme not in self.subtasks:
+            raise ModelError(
+                f"this {self.method} model has goal embeddings for {sorted(self.subtasks)} subtasks, not {scheme}"
+            )
+        return self.subtasks[scheme]
+
+    @torch.inference_mode()
+    def embed(self, frames: np.ndarray, batch_size: int = 256) -> np.ndarray:
+        """uint8 (N, H, W, 3) RGB frames of any size -> (N, D) float32 embeddings."""
+        frames = resize_frames(np.asarray(frames), self.image_size)
+        outputs = [
+            self.network(frames_to_tensor(frames[start : start + batch_size], self.encoder_config.channels_last))
+            for start in range(0, len(frames), batch_size)
+        ]
+        return torch.cat(outputs).numpy() if outputs else np.zeros((0, self.encoder_config.embedding_dim), np.float32)
+
+    @torch.inference_mode()
+    def holdr_steps(self, embeddings: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """HOLD-R's predicted steps from each embedded frame to the embedded goal."""
+        if self.method != "holdr":
+            raise ModelError(f"predicted steps need a holdr model, this one is {self.method}")
+        frames = torch.as_tensor(embeddings, dtype=torch.float32)
+        goals = torch.as_tensor(goal, dtype=torch.float32).expand_as(frames)
+        return (self.network.gap(frames, goals) * self.network.config.steps_unit).numpy()
+
+
+def save_model(folder: str | Path, network: nn.Module, metadata: dict[str, Any]) -> None:
+    """Weights first, then the JSON that makes the folder loadable, each by atomic rename."""
+    folder = Path(folder)
+    tensors = {name: tensor.detach().contiguous().cpu() for name, tensor in network.state_dict().items()}
+    write_atomic(folder / WEIGHTS_FILE, lambda path: save_file(tensors, str(path)))
+    document = {"format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION, **metadata}
+    write_atomic(folder / MODEL_FILE, lambda path: path.write_text(json.dumps(document, indent=2) + "\n"))
+
+
+def read_model_metadata(folder: str | Path) -> dict[str, Any]:
+    return read_versioned_json(
+        Path(folder) / MODEL_FILE, MODEL_FORMAT, MODEL_FORMAT_VERSION, "reward model", ModelError
+    )
+
+
+def check_expectations(
+    metadata: dict[str, Any], folder: Path, view: str | None, image_size: int | None, scheme: int | None
+) -> None:
+    trained = f"{folder} was trained on the {metadata['view']!r} camera at {metadata['encoder']['image_size']} px"
+    if view is not None and view != metadata["view"]:
+        raise ModelError(f"view mismatch: {trained}, but the caller uses the {view!r} camera")
+    if image_size is not None and image_size != metadata["encoder"]["image_size"]:
+        raise ModelError(f"input size mismatch: {trained}, but the caller asked for {image_size} px")
+    if scheme is not None and str(scheme) not in metadata["subtasks"]:
+        raise ModelError(
+            f"subtask scheme mismatch: {folder} has goals for {sorted(int(s) for s in metadata['subtasks'])} "
+            f"subtasks, but the caller asked for {scheme}"
+        )
+
+
+def load_model(
+    folder: str | Path, view: str | None = None, image_size: int | None = None, scheme: int | None = None
+) -> RewardModel:
+    """Load a model folder; any expectation given (view, input size, subtask scheme) must match it."""
+    folder = Path(folder)
+    metadata = read_model_metadata(folder)
+    check_expectations(metadata, folder, view, image_size, scheme)
+    encoder = EncoderConfig(**metadata["encoder"])
+    holdr = HoldRConfig(**metadata["holdr"]) if metadata.get("holdr") else None
+    network = build_network(metadata["method"], encoder, holdr)
+    try:
+        state = load_file(str(folder / WEIGHTS_FILE))
+        network.load_state_dict(state)
+    except (FileNotFoundError, SafetensorError, RuntimeError) as error:
+        raise ModelError(f"cannot load weights from {folder / WEIGHTS_FILE}: {error}") from error
+    return RewardModel(network, metadata)

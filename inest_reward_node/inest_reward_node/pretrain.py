@@ -1,0 +1,363 @@
+"""Pretrain a reward model on demonstration videos (`inest-pretrain`).
+
+`--method tcc` trains the frame encoder with Temporal Cycle-Consistency (INEST-IRL and XIRL
+share it: they differ only in their goal embeddings); `--method holdr` trains the HOLD-R
+baseline. Afterwards the goal embeddings and thresholds for 1, 3 and 6 subtasks (HOLD-R: 1)
+are computed from the training demonstrations and the model folder is written.
+
+Run folder: config.json (the full configuration), train_state.pt (weights, optimiser, RNG,
+history: the `--resume` point, written every `checkpoint_every` iterations), tensorboard/,
+loss.png, and model/ (the finished, loadable model).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from inest_sim_node.dataset import METADATA_FILE, DatasetError, read_metadata, sha256_of, write_atomic
+from tqdm import tqdm
+
+from .calibrate import CalibrationConfig, calibrate_thresholds, goal_embeddings, xirl_distance_scale
+from .data import AugmentConfig, Demo, augment_videos, load_demos, sample_goal_pairs, sample_tcc_batch
+from .encoders import ENCODER_KINDS, EncoderConfig, frames_to_tensor
+from .holdr import HoldRConfig
+from .model import METHODS, RewardModel, SubtaskGoals, build_network, save_model
+from .rewards import subtask_rewards
+from .shaping import ShapingConfig
+from .tcc import tcc_loss
+
+STATE_FILE = "train_state.pt"
+CONFIG_FILE = "config.json"
+MODEL_DIR = "model"
+TCC_SCHEMES = (1, 3, 6)
+
+
+@dataclass(frozen=True)
+class PretrainConfig:
+    dataset: str
+    method: str = "tcc"
+    view: str = "ego"
+    encoder: EncoderConfig = field(default_factory=EncoderConfig)
+    holdr: HoldRConfig = field(default_factory=HoldRConfig)
+    iterations: int = 1500
+    videos_per_batch: int = 8  # TCC: videos per batch, all ordered pairs used
+    frames_per_video: int = 32
+    pairs_per_batch: int = 64  # HOLD-R: (frame, goal) pairs per batch
+    learning_rate: float = 3e-4  # XIRL fine-tunes at 1e-5; training from scratch needs more
+    weight_decay: float = 1e-5
+    temperature: float = 1.0
+    augment: AugmentConfig = field(default_factory=AugmentConfig)
+    validate_every: int = 100
+    validation_batches: int = 4
+    checkpoint_every: int = 250
+    train_limit: int | None = None  # use only the first N demonstrations of a split (tests, quick runs)
+    valid_limit: int | None = None
+    seed: int = 0
+    threads: int = 2
+    shaping: ShapingConfig = field(default_factory=ShapingConfig)
+    calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
+        if self.view not in ("ego", "allo"):
+            raise ValueError(f"unknown view {self.view!r}; expected 'ego' or 'allo'")
+        for name in ("iterations", "videos_per_batch", "frames_per_video", "pairs_per_batch", "threads"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.method == "tcc" and self.videos_per_batch < 2:
+            raise ValueError("TCC needs at least 2 videos per batch")
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def settings_that_matter(self) -> set[str]:
+        """Fields that change what this method trains, which a resumed run must keep. `iterations`
+        may grow; shaping and calibration only affect the goals computed at the end."""
+        if self.method == "tcc":
+            unused = {"holdr", "pairs_per_batch"}
+        else:
+            unused = {"videos_per_batch", "frames_per_video", "temperature"}
+        return set(self.to_dict()) - unused - {"iterations", "shaping", "calibration"}
+
+
+class Objective:
+    """A pretraining loss over batches drawn from demonstrations."""
+
+    def __init__(self, config: PretrainConfig, network: torch.nn.Module) -> None:
+        self.config = config
+        self.network = network
+
+    def embed_clips(self, clips: np.ndarray, generator: torch.Generator) -> torch.Tensor:
+        """uint8 (B, T, S, S, 3) -> augmented (B, T, D) embeddings."""
+        videos, frames, size = clips.shape[0], clips.shape[1], clips.shape[2]
+        images = frames_to_tensor(clips.reshape(-1, size, size, 3), channels_last=False)
+        images = augment_videos(images.view(videos, frames, 3, size, size), self.config.augment, generator)
+        images = images.flatten(0, 1)
+        if self.config.encoder.channels_last:
+            images = images.contiguous(memory_format=torch.channels_last)
+        return self.network(images).view(videos, frames, -1)
+
+    def loss(self, demos: list[Demo], rng: np.random.Generator, generator: torch.Generator) -> torch.Tensor:
+        config = self.config
+        if config.method == "tcc":
+            clips, positions = sample_tcc_batch(demos, config.videos_per_batch, config.frames_per_video, rng)
+            embeddings = self.embed_clips(clips, generator)
+            return tcc_loss(embeddings, torch.from_numpy(positions), config.temperature)
+        starts, goals, gaps = sample_goal_pairs(demos, config.pairs_per_batch, rng)
+        embeddings = self.embed_clips(np.stack([starts, goals], axis=1), generator)
+        predicted = self.network.gap(embeddings[:, 0], embeddings[:, 1])
+        return torch.nn.functional.mse_loss(predicted, torch.from_numpy(gaps) / config.holdr.steps_unit)
+
+
+def dataset_hash(root: str | Path) -> str:
+    """sha256 of metadata.json, which lists every episode file's own sha256."""
+    read_metadata(Path(root))
+    return sha256_of(Path(root) / METADATA_FILE)
+
+
+def calibrate(
+    model: RewardModel, demos: list[Demo], config: PretrainConfig, progress_bar: bool = True
+) -> dict[str, SubtaskGoals]:
+    """Goal embeddings, XIRL scale and thresholds per subtask scheme, from the training demonstrations."""
+    embeddings = [
+        model.embed(demo.frames) for demo in tqdm(demos, desc="embedding demos", leave=False, disable=not progress_bar)
+    ]
+    schemes = TCC_SCHEMES if config.method == "tcc" else (1,)
+    result = {}
+    for scheme in schemes:
+        ends = [demo.ends[scheme] for demo in demos]
+        goals = goal_embeddings(embeddings, ends)
+        partial = SubtaskGoals(goals, [], xirl_distance_scale(embeddings, goals[-1]))
+        rewards = [subtask_rewards(model, emb, partial) for emb in embeddings]
+        partial.thresholds = calibrate_thresholds(
+            lambda i, rewards=rewards: [r[:, i] for r in rewards],
+            ends,
+            scheme,
+            config.shaping.hold_steps,
+            config.calibration,
+        )
+        result[str(scheme)] = partial
+    return result
+
+
+def model_metadata(config: PretrainConfig, iterations_done: int, subtasks: dict[str, SubtaskGoals]) -> dict[str, Any]:
+    return {
+        "method": config.method,
+        "view": config.view,
+        "encoder": config.encoder.to_dict(),
+        "holdr": config.holdr.to_dict() if config.method == "holdr" else None,
+        "dataset": {"path": str(config.dataset), "sha256": dataset_hash(config.dataset)},
+        "training": {"iterations": iterations_done, "config": config.to_dict()},
+        "shaping": config.shaping.to_dict(),
+        "calibration": config.calibration.to_dict(),
+        "subtasks": {scheme: goals.to_dict() for scheme, goals in subtasks.items()},
+    }
+
+
+def plot_history(history: dict[str, list[list[float]]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(6, 3.5))
+    for name, points in history.items():
+        if points:
+            steps, values = zip(*points, strict=True)
+            axis.plot(steps, values, label=name)
+    axis.set(xlabel="iteration", ylabel="loss", yscale="log", title="pretraining loss")
+    axis.legend()
+    figure.tight_layout()
+    figure.savefig(path, dpi=100)
+    plt.close(figure)
+
+
+class Pretrainer:
+    def __init__(self, config: PretrainConfig, run_dir: str | Path, resume: bool = False) -> None:
+        self.config = config
+        self.run_dir = Path(run_dir)
+        self.check_run_dir(resume)
+        torch.manual_seed(config.seed)
+        self.network = build_network(config.method, config.encoder, config.holdr)
+        self.optimizer = torch.optim.AdamW(
+            self.network.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay
+        )
+        self.objective = Objective(config, self.network)
+        self.rng = np.random.default_rng(config.seed)
+        self.generator = torch.Generator().manual_seed(config.seed)
+        self.iteration = 0
+        self.history: dict[str, list[list[float]]] = {"train": [], "valid": []}
+        if resume and (self.run_dir / STATE_FILE).exists():
+            self.load_state()
+
+    def check_run_dir(self, resume: bool) -> None:
+        config_path = self.run_dir / CONFIG_FILE
+        if config_path.exists():
+            saved = json.loads(config_path.read_text())
+            if not resume:
+                raise FileExistsError(f"{self.run_dir} already holds a run; pass --resume to continue it or pick --out")
+            mine = self.config.to_dict()
+            differing = sorted(key for key in self.config.settings_that_matter() if saved.get(key) != mine[key])
+            if differing:
+                raise ValueError(
+                    f"cannot resume {self.run_dir}: settings differ from the saved run: {', '.join(differing)}"
+                )
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        config_path.write_text(json.dumps(self.config.to_dict(), indent=2) + "\n")
+
+    def save_state(self) -> None:
+        state = {
+            "network": self.network.state_dict(),
+            "optimizer": self.optimizer.state_dict(),
+            "iteration": self.iteration,
+            "numpy_rng": json.dumps(self.rng.bit_generator.state),
+            "torch_rng": self.generator.get_state(),
+            "history": json.dumps(self.history),
+        }
+        write_atomic(self.run_dir / STATE_FILE, lambda path: torch.save(state, path))
+
+    def load_state(self) -> None:
+        state = torch.load(self.run_dir / STATE_FILE, weights_only=True)
+        self.network.load_state_dict(state["network"])
+        self.optimizer.load_state_dict(state["optimizer"])
+        self.iteration = int(state["iteration"])
+        self.rng.bit_generator.state = json.loads(state["numpy_rng"])
+        self.generator.set_state(state["torch_rng"])
+        self.history = json.loads(state["history"])
+
+    @torch.no_grad()
+    def validation_loss(self, demos: list[Demo]) -> float:
+        self.network.eval()
+        rng, generator = np.random.default_rng(12345), torch.Generator().manual_seed(12345)
+        losses = [float(self.objective.loss(demos, rng, generator)) for _ in range(self.config.validation_batches)]
+        self.network.train()
+        return float(np.mean(losses))
+
+    def train(self, train: list[Demo], valid: list[Demo], progress_bar: bool = True) -> RewardModel:
+        from torch.utils.tensorboard import SummaryWriter
+
+        config = self.config
+        torch.set_num_threads(config.threads)
+        writer = SummaryWriter(str(self.run_dir / "tensorboard"))
+        self.network.train()
+        bar = tqdm(
+            total=config.iterations,
+            initial=self.iteration,
+            desc=f"pretrain {config.method}",
+            unit="it",
+            disable=not progress_bar,
+        )
+        while self.iteration < config.iterations:
+            loss = self.objective.loss(train, self.rng, self.generator)
+            self.optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            self.optimizer.step()
+            self.iteration += 1
+            value = loss.item()
+            writer.add_scalar("loss/train", value, self.iteration)
+            self.history["train"].append([self.iteration, value])
+            postfix = {"loss": f"{value:.4f}"}
+            if valid and (self.iteration % config.validate_every == 0 or self.iteration == config.iterations):
+                validation = self.validation_loss(valid)
+                writer.add_scalar("loss/valid", validation, self.iteration)
+                self.history["valid"].append([self.iteration, validation])
+                postfix["valid"] = f"{validation:.4f}"
+            bar.set_postfix(postfix, refresh=False)
+            bar.update()
+            if self.iteration % config.checkpoint_every == 0 or self.iteration == config.iterations:
+                self.save_state()
+        bar.close()
+        writer.close()
+        plot_history(self.history, self.run_dir / "loss.png")
+        return self.finish(train, progress_bar)
+
+    def finish(self, train: list[Demo], progress_bar: bool = True) -> RewardModel:
+        model = RewardModel(self.network, model_metadata(self.config, self.iteration, {}))
+        subtasks = calibrate(model, train, self.config, progress_bar)
+        metadata = model_metadata(self.config, self.iteration, subtasks)
+        save_model(self.run_dir / MODEL_DIR, self.network, metadata)
+        return RewardModel(self.network, metadata)
+
+
+def pretrain(
+    config: PretrainConfig, run_dir: str | Path, resume: bool = False, progress_bar: bool = True
+) -> RewardModel:
+    trainer = Pretrainer(config, run_dir, resume)
+    size = config.encoder.image_size
+    train = load_demos(config.dataset, "train", config.view, size, config.train_limit, progress_bar)
+    valid = load_demos(config.dataset, "valid", config.view, size, config.valid_limit, progress_bar)
+    if len(train) < 2:
+        raise DatasetError(f"{config.dataset} has {len(train)} training demonstrations; pretraining needs at least 2")
+    return trainer.train(train, valid, progress_bar)
+
+
+INTEGER_OPTIONS = (
+    "iterations",
+    "videos_per_batch",
+    "frames_per_video",
+    "pairs_per_batch",
+    "validate_every",
+    "checkpoint_every",
+    "train_limit",
+    "valid_limit",
+    "seed",
+    "threads",
+)
+
+
+def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespace]:
+    defaults = PretrainConfig(dataset="")
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("dataset", help="demonstration dataset folder (inest-collect-demos)")
+    parser.add_argument("--out", required=True, help="run folder")
+    parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+    parser.add_argument("--method", choices=METHODS, default=defaults.method)
+    parser.add_argument("--view", choices=("ego", "allo"), default=defaults.view)
+    parser.add_argument("--encoder", choices=ENCODER_KINDS, default=defaults.encoder.kind)
+    parser.add_argument("--image-size", type=int, default=defaults.encoder.image_size)
+    parser.add_argument("--embedding-dim", type=int, default=defaults.encoder.embedding_dim)
+    for name in INTEGER_OPTIONS:
+        parser.add_argument(f"--{name.replace('_', '-')}", type=int, default=getattr(defaults, name))
+    parser.add_argument("--learning-rate", type=float, default=defaults.learning_rate)
+    parser.add_argument("--hold-steps", type=int, default=defaults.shaping.hold_steps)
+    parser.add_argument("--threshold-percentile", type=float, default=defaults.calibration.percentile)
+    parser.add_argument("--no-augment", action="store_true")
+    args = parser.parse_args(argv)
+    config = dataclasses.replace(
+        defaults,
+        dataset=args.dataset,
+        method=args.method,
+        view=args.view,
+        encoder=EncoderConfig(kind=args.encoder, image_size=args.image_size, embedding_dim=args.embedding_dim),
+        learning_rate=args.learning_rate,
+        augment=dataclasses.replace(defaults.augment, enabled=not args.no_augment),
+        shaping=dataclasses.replace(defaults.shaping, hold_steps=args.hold_steps),
+        calibration=CalibrationConfig(percentile=args.threshold_percentile),
+        **{name: getattr(args, name) for name in INTEGER_OPTIONS},
+    )
+    return config, args
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        config, args = parse_args(argv)
+        model = pretrain(config, args.out, resume=args.resume)
+    except (DatasetError, FileExistsError, ValueError) as error:
+        print(f"inest-pretrain: {error}", file=sys.stderr)
+        return 2
+    schemes = ", ".join(f"{scheme} subtasks" for scheme in sorted(model.subtasks))
+    print(f"wrote {Path(args.out) / MODEL_DIR} ({config.method}, {config.view}, goals for {schemes})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

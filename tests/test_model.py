@@ -1,0 +1,98 @@
+"""Model folders: safe round trip, clear mismatch errors, resumable training runs."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+
+import numpy as np
+import pytest
+import torch
+from inest_reward_node.data import load_demos
+from inest_reward_node.model import MODEL_FILE, WEIGHTS_FILE, ModelError, load_model
+from inest_reward_node.pretrain import STATE_FILE, Pretrainer, dataset_hash, pretrain
+from safetensors import safe_open
+
+
+def test_model_round_trip_keeps_weights_and_calibration(tiny_tcc_run):
+    config, run_dir = tiny_tcc_run
+    folder = run_dir / "model"
+    model = load_model(folder, view="ego", image_size=48, scheme=3)
+    metadata = json.loads((folder / MODEL_FILE).read_text())
+    assert metadata["view"] == "ego" and metadata["encoder"]["image_size"] == 48
+    assert metadata["dataset"]["sha256"] == dataset_hash(config.dataset)
+    assert sorted(metadata["subtasks"]) == ["1", "3", "6"]
+    with safe_open(str(folder / WEIGHTS_FILE), framework="pt") as weights:  # plain tensors, no pickle
+        assert len(list(weights.keys())) > 10
+    trainer = Pretrainer(config, run_dir, resume=True)  # the training state holds the same weights
+    demo = load_demos(config.dataset, "valid", "ego", 48, limit=1, progress_bar=False)[0]
+    with torch.no_grad():
+        from inest_reward_node.encoders import frames_to_tensor
+
+        expected = trainer.network.eval()(frames_to_tensor(demo.frames)).numpy()
+    np.testing.assert_allclose(model.embed(demo.frames), expected, rtol=1e-5, atol=1e-5)
+    # frames of another size are resized to the model's input
+    assert model.embed(np.zeros((2, 96, 96, 3), np.uint8)).shape == (2, 32)
+
+
+def test_mismatched_expectations_fail_with_clear_messages(tiny_tcc_run):
+    _, run_dir = tiny_tcc_run
+    folder = run_dir / "model"
+    with pytest.raises(ModelError, match=r"view mismatch: .* 'ego' camera at 48 px, but the caller uses the 'allo'"):
+        load_model(folder, view="allo")
+    with pytest.raises(ModelError, match=r"input size mismatch: .* asked for 96 px"):
+        load_model(folder, image_size=96)
+    with pytest.raises(ModelError, match=r"subtask scheme mismatch: .* goals for \[1, 3, 6\] .* asked for 2"):
+        load_model(folder, scheme=2)
+
+
+def test_missing_or_corrupt_model_files_are_reported(tiny_tcc_run, tmp_path):
+    _, run_dir = tiny_tcc_run
+    with pytest.raises(ModelError, match=r"model\.json is missing"):
+        load_model(tmp_path)
+    broken = tmp_path / "broken"
+    shutil.copytree(run_dir / "model", broken)
+    (broken / WEIGHTS_FILE).write_bytes(b"not a safetensors file")
+    with pytest.raises(ModelError, match="cannot load weights"):
+        load_model(broken)
+    (broken / MODEL_FILE).write_text("{")
+    with pytest.raises(ModelError, match="corrupt"):
+        load_model(broken)
+
+
+def test_interrupted_run_resumes_where_it_stopped(tiny_tcc_run, tmp_path):
+    config, _ = tiny_tcc_run
+    short = dataclasses.replace(config, iterations=10, checkpoint_every=5, validate_every=5)
+    run_dir = tmp_path / "run"
+    pretrain(short, run_dir, progress_bar=False)
+    first = torch.load(run_dir / STATE_FILE, weights_only=True)
+    assert first["iteration"] == 10
+    with pytest.raises(FileExistsError, match="--resume"):
+        Pretrainer(short, run_dir)
+    with pytest.raises(ValueError, match="settings differ from the saved run: learning_rate"):
+        Pretrainer(dataclasses.replace(short, iterations=20, learning_rate=0.5), run_dir, resume=True)
+    longer = dataclasses.replace(short, iterations=15)
+    trainer = Pretrainer(longer, run_dir, resume=True)
+    assert trainer.iteration == 10
+    pretrain(longer, run_dir, resume=True, progress_bar=False)
+    state = torch.load(run_dir / STATE_FILE, weights_only=True)
+    history = json.loads(state["history"])
+    assert state["iteration"] == 15
+    assert [step for step, _ in history["train"]] == list(range(1, 16))
+    assert load_model(run_dir / "model").metadata["training"]["iterations"] == 15
+
+
+def test_resnet18_models_train_save_and_load(tiny_tcc_run, tmp_path):
+    config, _ = tiny_tcc_run
+    resnet = dataclasses.replace(
+        config,
+        encoder=dataclasses.replace(config.encoder, kind="resnet18"),
+        iterations=2,
+        videos_per_batch=2,
+        frames_per_video=8,
+    )
+    pretrain(resnet, tmp_path, progress_bar=False)
+    model = load_model(tmp_path / "model", scheme=6)
+    assert model.encoder_config.kind == "resnet18"
+    assert model.embed(np.zeros((3, 48, 48, 3), np.uint8)).shape == (3, 32)

@@ -7,12 +7,12 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$ROOT/scripts/setup_env.sh"
 BIN="${INEST_VENV:-$ROOT/.venv}/bin"
 cd "$ROOT"
-"$BIN/inest-collect-demos" --out runs/demos-small --episodes "${INEST_EPISODES:-20}"
-"$BIN/inest-export-video" runs/demos-small --out runs/expert_episode.gif
-if [ ! -f runs/pretrain-small/model/model.json ]; then
+"$BIN/inest-collect-demos" --out runs/demos-main --episodes "${INEST_EPISODES:-100}"
+"$BIN/inest-export-video" runs/demos-main --out runs/expert_episode.gif
+if [ ! -f runs/pretrain-main/model/model.json ]; then
   RESUME=()
-  [ -f runs/pretrain-small/config.json ] && RESUME=(--resume)
-  "$BIN/inest-pretrain" runs/demos-small --out runs/pretrain-small \
+  [ -f runs/pretrain-main/config.json ] && RESUME=(--resume)
+  "$BIN/inest-pretrain" runs/demos-main --out runs/pretrain-main \
     --iterations "${INEST_PRETRAIN_ITERATIONS:-300}" "${RESUME[@]}"
 fi
-"$BIN/inest-reward-quality" runs/pretrain-small/model runs/demos-small --out runs/quality-small
+"$BIN/inest-reward-quality" runs/pretrain-main/model runs/demos-main --out runs/quality-main

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .intrinsic import IntrinsicConfig, NoveltyMemory
 from .model import ModelError, RewardModel, SubtaskGoals
 from .shaping import SubtaskTracker, distance_reward
 
@@ -52,6 +53,117 @@ def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGo
 
 
 @dataclass
+class RewardParts:
+    """One scored batch: per environment, the reward and what it is made of."""
+
+    total: np.ndarray  # (N,) what the agent receives
+    distance: np.ndarray  # (N,) the method's per-frame reward (INEST: r(d) to the current goal; 0 once done)
+    bonus: np.ndarray  # (N,) subtask bonus (INEST: completed subtasks x bonus)
+    intrinsic: np.ndarray  # (N,) weighted novelty bonus
+    subtask: np.ndarray  # (N,) current subtask index after this frame
+    completed: np.ndarray  # (N,) subtasks completed after this frame
+    switched: np.ndarray  # (N,) bool, this frame completed a subtask
+
+
+class RewardScorer:
+    """The learned reward for N environments at once, with per-environment subtask trackers and
+    per-subtask novelty memories shared by all of them.
+
+    `score(frames)` embeds all N frames in one forward pass. `reset(i)` starts environment i's
+    next episode: its tracker restarts, the exploration memories are kept.
+    """
+
+    def __init__(
+        self,
+        model: RewardModel,
+        scheme: int,
+        variant: str | None = None,
+        intrinsic: IntrinsicConfig | None = None,
+        num_envs: int = 1,
+    ) -> None:
+        self.model = model
+        self.variant = variant or default_variant(model, scheme)
+        check_variant(model, self.variant, scheme)
+        self.goals = model.goals(scheme)
+        self.intrinsic = intrinsic or IntrinsicConfig(mode="none")
+        self.trackers = [SubtaskTracker(self.goals.thresholds, model.shaping.hold_steps) for _ in range(num_envs)]
+        self.steps_since_switch = np.full(num_envs, -1)
+        self.memories: list[NoveltyMemory] = []
+
+    @property
+    def num_envs(self) -> int:
+        return len(self.trackers)
+
+    @property
+    def num_subtasks(self) -> int:
+        return len(self.goals.thresholds)
+
+    def reset(self, env_index: int | None = None) -> None:
+        """Start a new episode in one environment (or all): tracker only, memories persist."""
+        for index in range(self.num_envs) if env_index is None else [env_index]:
+            self.trackers[index].reset()
+            self.steps_since_switch[index] = -1
+
+    def score(self, frames: np.ndarray, states: np.ndarray | None = None) -> RewardParts:
+        """frames: (N, H, W, 3) uint8, one per environment, in environment order."""
+        return self.score_embeddings(self.model.embed(frames), states)
+
+    def score_embeddings(self, embeddings: np.ndarray, states: np.ndarray | None = None) -> RewardParts:
+        return self.advance(subtask_rewards(self.model, embeddings, self.goals), embeddings, states)
+
+    def advance(self, per_subtask: np.ndarray, embeddings: np.ndarray, states: np.ndarray | None) -> RewardParts:
+        """Move every tracker one frame on, given each frame's reward against every subtask goal."""
+        if len(per_subtask) != self.num_envs:
+            raise ValueError(f"expected one frame per environment ({self.num_envs}), got {len(per_subtask)}")
+        count = self.num_envs
+        distance, bonus, subtask, completed = (
+            np.zeros(count),
+            np.zeros(count),
+            np.zeros(count, int),
+            np.zeros(count, int),
+        )
+        switched = np.zeros(count, bool)
+        novelty_subtask = np.zeros(count, int)
+        for index, (tracker, row) in enumerate(zip(self.trackers, per_subtask, strict=True)):
+            novelty_subtask[index] = tracker.current  # novelty is judged within the subtask the frame was taken in
+            was_done = tracker.done
+            reward_now = row[tracker.current]
+            switched[index] = tracker.update(reward_now)
+            if self.variant == "inest":
+                distance[index] = 0.0 if was_done else reward_now
+                bonus[index] = tracker.completed * self.model.shaping.subtask_bonus
+            else:
+                distance[index] = row[-1]
+            subtask[index], completed[index] = tracker.current, tracker.completed
+        if self.variant == "xirl":
+            distance = -self.goals.distance_scale * np.linalg.norm(embeddings - self.goals.goals[-1], axis=1)
+        intrinsic = self.intrinsic_bonus(embeddings, states, novelty_subtask)
+        self.steps_since_switch = np.where(
+            switched, 0, np.where(self.steps_since_switch >= 0, self.steps_since_switch + 1, -1)
+        )
+        return RewardParts(distance + bonus + intrinsic, distance, bonus, intrinsic, subtask, completed, switched)
+
+    def intrinsic_bonus(self, embeddings: np.ndarray, states: np.ndarray | None, subtasks: np.ndarray) -> np.ndarray:
+        config = self.intrinsic
+        if config.mode == "none":
+            return np.zeros(self.num_envs)
+        if config.mode == "state":
+            if states is None:
+                raise ValueError("the state intrinsic bonus needs the environments' state vectors")
+            vectors = np.asarray(states, dtype=np.float32)
+        else:  # embedding distances in the same units as the INEST reward's d
+            vectors = embeddings * self.goals.distance_scale * self.model.shaping.start_distance
+        if not self.memories:
+            self.memories = [NoveltyMemory(vectors.shape[1], config.capacity) for _ in range(self.num_subtasks)]
+        novelty = np.zeros(self.num_envs)
+        for subtask in np.unique(subtasks):
+            members = subtasks == subtask
+            novelty[members] = self.memories[subtask].novelty(vectors[members], config.k)
+            self.memories[subtask].add(vectors[members])
+        return config.weight_after(self.steps_since_switch) * novelty
+
+
+@dataclass
 class Replay:
     rewards: np.ndarray  # (N,) the reward the agent would receive on each frame
     subtask: np.ndarray  # (N,) the tracker's current subtask on each frame (after the update)
@@ -65,32 +177,16 @@ class Replay:
 
 
 def replay(model: RewardModel, embeddings: np.ndarray, scheme: int, variant: str | None = None) -> Replay:
-    """Feed one episode's embeddings, in order, through a fresh tracker."""
-    variant = variant or default_variant(model, scheme)
-    check_variant(model, variant, scheme)
-    goals = model.goals(scheme)
-    per_subtask = subtask_rewards(model, embeddings, goals)
-    tracker = SubtaskTracker(goals.thresholds, model.shaping.hold_steps)
-    bonus = model.shaping.subtask_bonus
-    rewards, current, completed, completions = [], [], [], []
-    for frame, row in enumerate(per_subtask):
-        was_done = tracker.done
-        reward_now = row[tracker.current]
-        if tracker.update(reward_now):
-            completions.append(frame)
-        if variant == "xirl":
-            distance = np.linalg.norm(embeddings[frame] - goals.goals[-1])
-            rewards.append(-goals.distance_scale * distance)
-        elif variant == "holdr":
-            rewards.append(row[-1])
-        else:
-            rewards.append(tracker.completed * bonus if was_done else reward_now + tracker.completed * bonus)
-        current.append(tracker.current)
-        completed.append(tracker.completed)
+    """Feed one episode's embeddings, in order, through a fresh scorer (no intrinsic bonus)."""
+    scorer = RewardScorer(model, scheme, variant)
+    per_subtask = subtask_rewards(model, embeddings, scorer.goals)
+    steps = [
+        scorer.advance(row[None], embedding[None], None) for row, embedding in zip(per_subtask, embeddings, strict=True)
+    ]
     return Replay(
-        np.asarray(rewards, dtype=np.float64),
-        np.asarray(current),
-        np.asarray(completed),
-        completions,
-        len(goals.thresholds),
+        np.array([step.total[0] for step in steps]),
+        np.array([step.subtask[0] for step in steps]),
+        np.array([step.completed[0] for step in steps]),
+        [frame for frame, step in enumerate(steps) if step.switched[0]],
+        scorer.num_subtasks,
     )

@@ -1,0 +1,82 @@
+"""Intrinsic novelty bonus (thesis 4.2.3, "Intrinsic Reward Integration").
+
+One FIFO memory of visited vectors per subtask; a frame's novelty is its distance to the
+k-th nearest vector already in the memory of the subtask it is in. Memories persist across
+episodes (they are the exploration history); only the subtask tracker is reset per episode.
+The bonus weight is raised for a few steps after every subtask switch, when the agent has
+to find new behaviour.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+INTRINSIC_MODES = ("none", "embedding", "state")
+
+
+@dataclass(frozen=True)
+class IntrinsicConfig:
+    mode: str = "embedding"  # none | embedding (learned embedding) | state (raw state vector, thesis 5.2.3)
+    capacity: int = 5000  # per subtask, FIFO (thesis)
+    k: int = 10  # k-th nearest neighbour (the thesis author's code); capped at the memory's size
+    weight: float = 0.2  # thesis
+    boosted_weight: float = 0.4  # thesis, for `boost_steps` steps after a subtask switch
+    boost_steps: int = 10  # the thesis's n, not given there
+
+    def __post_init__(self) -> None:
+        if self.mode not in INTRINSIC_MODES:
+            raise ValueError(f"unknown intrinsic mode {self.mode!r}; expected one of {INTRINSIC_MODES}")
+        for name in ("capacity", "k"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if self.boost_steps < 0 or min(self.weight, self.boosted_weight) < 0:
+            raise ValueError("intrinsic weights and boost_steps must be non-negative")
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def weight_after(self, steps_since_switch: np.ndarray | int) -> np.ndarray:
+        """Bonus weight for frames `steps_since_switch` steps after the last switch (-1: none yet)."""
+        steps = np.asarray(steps_since_switch)
+        boosted = (steps >= 0) & (steps < self.boost_steps)
+        return np.where(boosted, self.boosted_weight, self.weight)
+
+
+class NoveltyMemory:
+    """A ring buffer of at most `capacity` vectors; the oldest is overwritten first."""
+
+    def __init__(self, dim: int, capacity: int) -> None:
+        self.vectors = np.zeros((capacity, dim), dtype=np.float32)
+        self.capacity = capacity
+        self.size = 0
+        self.next = 0
+
+    def __len__(self) -> int:
+        return self.size
+
+    def contents(self) -> np.ndarray:
+        """Stored vectors, oldest first."""
+        if self.size < self.capacity:
+            return self.vectors[: self.size].copy()
+        return np.concatenate([self.vectors[self.next :], self.vectors[: self.next]])
+
+    def add(self, vectors: np.ndarray) -> None:
+        for vector in np.atleast_2d(vectors):
+            self.vectors[self.next] = vector
+            self.next = (self.next + 1) % self.capacity
+            self.size = min(self.size + 1, self.capacity)
+
+    def novelty(self, queries: np.ndarray, k: int) -> np.ndarray:
+        """Distance of each query to its k-th nearest stored vector (k capped at the size); 0 when empty."""
+        queries = np.atleast_2d(queries).astype(np.float32)
+        if self.size == 0:
+            return np.zeros(len(queries))
+        stored = self.vectors[: self.size]
+        squared = (
+            np.square(queries).sum(1, keepdims=True) - 2.0 * queries @ stored.T + np.square(stored).sum(1)[None, :]
+        )
+        kth = min(k, self.size) - 1
+        return np.sqrt(np.maximum(np.partition(squared, kth, axis=1)[:, kth], 0.0))

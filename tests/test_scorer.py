@@ -1,0 +1,110 @@
+"""The learned reward for N environments: subtask bonus, terminal reward, intrinsic bonus, batching."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from inest_reward_node.encoders import EncoderConfig
+from inest_reward_node.intrinsic import IntrinsicConfig
+from inest_reward_node.model import ModelError, RewardModel, build_network, load_model
+from inest_reward_node.rewards import RewardScorer
+from inest_reward_node.shaping import ShapingConfig, distance_reward
+
+GOALS = [[0.0, 0.0], [10.0, 0.0], [20.0, 0.0]]
+
+
+def line_model(hold_steps: int = 2) -> RewardModel:
+    """A 2-D embedding space with three goals on a line; distance_scale x start_distance = 1, so d is raw."""
+    encoder = EncoderConfig(embedding_dim=2, image_size=32)
+    shaping = ShapingConfig(hold_steps=hold_steps)
+    metadata = {
+        "method": "tcc",
+        "view": "ego",
+        "encoder": encoder.to_dict(),
+        "shaping": shaping.to_dict(),
+        "subtasks": {
+            "1": {"goals": GOALS[-1:], "thresholds": [-0.02], "distance_scale": 0.1},
+            "3": {"goals": GOALS, "thresholds": [-0.02, -0.02, -0.02], "distance_scale": 0.1},
+        },
+    }
+    return RewardModel(build_network("tcc", encoder), metadata)
+
+
+def at(x: float) -> np.ndarray:
+    return np.array([[x, 0.0]])
+
+
+def test_bonus_per_completed_subtask_and_constant_reward_after_the_last():
+    scorer = RewardScorer(line_model(hold_steps=2), scheme=3)
+    far = scorer.score_embeddings(at(5.0))
+    assert far.total[0] == pytest.approx(distance_reward(5.0, scorer.model.shaping))
+    assert (far.subtask[0], far.bonus[0]) == (0, 0.0)
+    scorer.score_embeddings(at(0.0))  # first frame at goal 1: holding, not yet complete
+    done_first = scorer.score_embeddings(at(0.0))
+    assert done_first.switched[0] and done_first.subtask[0] == 1
+    assert done_first.bonus[0] == 2.0
+    assert done_first.total[0] == pytest.approx(distance_reward(0.0, scorer.model.shaping) + 2.0)
+    next_goal = scorer.score_embeddings(at(0.0))  # now measured against goal 2, 10 away
+    assert next_goal.total[0] == pytest.approx(distance_reward(10.0, scorer.model.shaping) + 2.0)
+    for x in (10.0, 10.0, 20.0, 20.0):
+        parts = scorer.score_embeddings(at(x))
+    assert parts.completed[0] == 3
+    for x in (20.0, -50.0):  # after the last subtask: the bonus alone, wherever the frame is
+        parts = scorer.score_embeddings(at(x))
+        assert parts.total[0] == 6.0 and parts.distance[0] == 0.0
+    scorer.reset(0)
+    assert scorer.score_embeddings(at(20.0)).completed[0] == 0  # the tracker restarts per episode
+
+
+def test_xirl_reward_is_the_scaled_distance_to_the_final_goal():
+    scorer = RewardScorer(line_model(), scheme=1, variant="xirl")
+    assert scorer.score_embeddings(at(0.0)).total[0] == pytest.approx(-0.1 * 20.0)
+    with pytest.raises(ModelError, match="one goal embedding"):
+        RewardScorer(line_model(), scheme=3, variant="xirl")
+
+
+def test_intrinsic_bonus_uses_the_current_subtasks_memory_and_the_boost_window():
+    intrinsic = IntrinsicConfig(mode="embedding", k=1, weight=0.2, boosted_weight=0.4, boost_steps=2)
+    scorer = RewardScorer(line_model(hold_steps=1), scheme=3, intrinsic=intrinsic)
+    assert scorer.score_embeddings(at(3.0)).intrinsic[0] == 0.0  # empty memory
+    assert scorer.score_embeddings(at(7.0)).intrinsic[0] == pytest.approx(0.2 * 4.0)
+    switch = scorer.score_embeddings(at(0.0))  # completes subtask 1 (hold 1); novelty judged in subtask 1
+    assert switch.switched[0] and switch.intrinsic[0] == pytest.approx(0.2 * 3.0)
+    first = scorer.score_embeddings(at(5.0))  # subtask 2's memory is empty
+    assert first.intrinsic[0] == 0.0
+    boosted = scorer.score_embeddings(at(8.0))
+    assert boosted.intrinsic[0] == pytest.approx(0.4 * 3.0)  # 1 step after the switch
+    normal = scorer.score_embeddings(at(8.5))
+    assert normal.intrinsic[0] == pytest.approx(0.2 * 0.5)  # 2 steps after: back to 0.2
+    scorer.reset(0)
+    again = scorer.score_embeddings(at(3.0))
+    assert again.intrinsic[0] == pytest.approx(0.2 * 0.0)  # memories persist across episodes
+    assert len(scorer.memories[0]) == 4 and len(scorer.memories[1]) == 3
+
+
+def test_state_intrinsic_bonus_needs_states():
+    scorer = RewardScorer(line_model(), scheme=3, intrinsic=IntrinsicConfig(mode="state", k=1))
+    scorer.score_embeddings(at(0.0), states=np.array([[0.0, 0.0, 0.0]]))
+    parts = scorer.score_embeddings(at(0.0), states=np.array([[0.0, 3.0, 4.0]]))
+    assert parts.intrinsic[0] == pytest.approx(0.2 * 5.0)
+    with pytest.raises(ValueError, match="state vectors"):
+        scorer.score_embeddings(at(0.0))
+
+
+def test_batched_scoring_matches_one_environment_at_a_time(tiny_tcc_run):
+    config, run_dir = tiny_tcc_run
+    model = load_model(run_dir / "model")
+    from inest_reward_node.data import load_demos
+
+    demos = load_demos(config.dataset, "train", "ego", 48, limit=3, progress_bar=False)
+    length = min(len(demo) for demo in demos)
+    batched = RewardScorer(model, scheme=3, num_envs=3)
+    singles = [RewardScorer(model, scheme=3) for _ in demos]
+    for t in range(length):
+        together = batched.score(np.stack([demo.frames[t] for demo in demos]))
+        for index, (scorer, demo) in enumerate(zip(singles, demos, strict=True)):
+            alone = scorer.score(demo.frames[t : t + 1])
+            assert together.total[index] == pytest.approx(alone.total[0], abs=1e-5)
+            assert together.subtask[index] == alone.subtask[0]
+    with pytest.raises(ValueError, match="one frame per environment"):
+        batched.score(demos[0].frames[:2])

@@ -11,6 +11,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", ["config/train.yaml"]),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
@@ -19,4 +20,9 @@ setup(
     description="INEST agent: SAC policy learning on the learned reward, in process or over ROS 2 topics.",
     license="Apache-2.0",
     python_requires=">=3.11",
+    entry_points={
+        "console_scripts": [
+            "inest-train = inest_agent_node.train:main",
+        ],
+    },
 )

@@ -31,11 +31,11 @@ from .encoders import ENCODER_KINDS, EncoderConfig, frames_to_tensor
 from .holdr import HoldRConfig
 from .model import METHODS, RewardModel, SubtaskGoals, build_network, save_model
 from .rewards import subtask_rewards
+from .runs import prepare_run_dir
 from .shaping import ShapingConfig
 from .tcc import tcc_loss
 
 STATE_FILE = "train_state.pt"
-CONFIG_FILE = "config.json"
 MODEL_DIR = "model"
 TCC_SCHEMES = (1, 3, 6)
 
@@ -200,19 +200,8 @@ class Pretrainer:
             self.load_state()
 
     def check_run_dir(self, resume: bool) -> None:
-        config_path = self.run_dir / CONFIG_FILE
-        if config_path.exists():
-            saved = json.loads(config_path.read_text())
-            if not resume:
-                raise FileExistsError(f"{self.run_dir} already holds a run; pass --resume to continue it or pick --out")
-            mine = self.config.to_dict()
-            differing = sorted(key for key in self.config.settings_that_matter() if saved.get(key) != mine[key])
-            if differing:
-                raise ValueError(
-                    f"cannot resume {self.run_dir}: settings differ from the saved run: {', '.join(differing)}"
-                )
-        self.run_dir.mkdir(parents=True, exist_ok=True)
-        config_path.write_text(json.dumps(self.config.to_dict(), indent=2) + "\n")
+        settings = self.config.to_dict()
+        prepare_run_dir(self.run_dir, settings, resume, self.config.settings_that_matter())
 
     def save_state(self) -> None:
         state = {

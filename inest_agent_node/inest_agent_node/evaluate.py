@@ -1,0 +1,95 @@
+"""Policy evaluation as in thesis 5.1.3: N episodes on fresh layouts, mean score, success rate and
+the share of episodes ending with 0, 1, 2 or 3 blocks placed in order; learning-curve plot."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from inest_sim_node import EnvConfig, SweepToTopEnv
+
+EVAL_SEED_OFFSET = 10_000_000  # evaluation layouts never overlap training or demonstration seeds
+NUM_BLOCKS = 3
+
+Policy = Callable[[np.ndarray, SweepToTopEnv], np.ndarray]
+
+
+@dataclass
+class EvalResult:
+    episodes: int
+    mean_score: float
+    score_std: float
+    success_rate: float
+    blocks_share: list[float]  # share of episodes ending with 0, 1, 2, 3 blocks in order
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def evaluate(policy: Policy, episodes: int = 150, env_config: EnvConfig | None = None, seed: int = 0) -> EvalResult:
+    """Run `policy(observation, env)` for `episodes` full episodes; the score is the one at the end."""
+    env = SweepToTopEnv(config=env_config or EnvConfig())
+    scores = []
+    for episode in range(episodes):
+        observation, info = env.reset(seed=EVAL_SEED_OFFSET + seed + episode)
+        done = False
+        while not done:
+            observation, _, terminated, truncated, info = env.step(policy(observation, env))
+            done = terminated or truncated
+        scores.append(float(info["score"]))
+    env.close()
+    scores_array = np.array(scores)
+    blocks = np.rint(scores_array * NUM_BLOCKS).astype(int)
+    return EvalResult(
+        episodes=episodes,
+        mean_score=float(scores_array.mean()),
+        score_std=float(scores_array.std()),
+        success_rate=float(np.mean(blocks == NUM_BLOCKS)),
+        blocks_share=[float(np.mean(blocks == count)) for count in range(NUM_BLOCKS + 1)],
+    )
+
+
+def format_table(rows: dict[str, EvalResult]) -> str:
+    lines = ["policy            episodes  mean score  success   0 blocks  1 block  2 blocks  3 blocks"]
+    for name, result in rows.items():
+        shares = "  ".join(f"{share:>7.1%}" for share in result.blocks_share)
+        lines.append(
+            f"{name:<17} {result.episodes:>8}  {result.mean_score:>10.3f}  {result.success_rate:>7.1%}  {shares}"
+        )
+    return "\n".join(lines)
+
+
+def moving_average(values: np.ndarray, window: int) -> np.ndarray:
+    return np.array([values[max(0, i - window + 1) : i + 1].mean() for i in range(len(values))])
+
+
+def plot_learning_curve(
+    curves: dict[str, list[list[float]]], path: str | Path, reference: list[list[float]] | None = None, window: int = 5
+) -> None:
+    """curves: name -> [[step, mean score, std], ...]; moving average over `window` evaluation points
+    with a std band; `reference` (the env-reward run) dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(7, 4))
+    for name, points in curves.items():
+        if not points:
+            continue
+        steps, means, stds = (np.array(column) for column in zip(*points, strict=True))
+        mean, std = moving_average(means, window), moving_average(stds, window)
+        axis.plot(steps, mean, label=name)
+        axis.fill_between(steps, np.clip(mean - std, 0, 1), np.clip(mean + std, 0, 1), alpha=0.2)
+    if reference:
+        steps, means, _ = (np.array(column) for column in zip(*reference, strict=True))
+        axis.plot(steps, moving_average(means, window), "k--", label="env reward (reference)")
+    axis.set(xlabel="environment steps", ylabel="evaluation score", ylim=(0, 1.02), title="evaluation score")
+    axis.legend()
+    figure.tight_layout()
+    figure.savefig(path, dpi=100)
+    plt.close(figure)

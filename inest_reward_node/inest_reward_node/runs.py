@@ -1,0 +1,25 @@
+"""Run folders shared by the training commands: the full config is written next to the results,
+and a resumed run must keep every setting that changes what it trains."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+CONFIG_FILE = "config.json"
+
+
+def prepare_run_dir(run_dir: Path, settings: dict[str, Any], resume: bool, must_match: Iterable[str]) -> None:
+    """Create `run_dir` and write config.json; refuse to overwrite a run unless resuming it unchanged."""
+    path = run_dir / CONFIG_FILE
+    if path.exists():
+        if not resume:
+            raise FileExistsError(f"{run_dir} already holds a run; pass --resume to continue it or pick --out")
+        saved = json.loads(path.read_text())
+        differing = sorted(key for key in must_match if saved.get(key) != settings[key])
+        if differing:
+            raise ValueError(f"cannot resume {run_dir}: settings differ from the saved run: {', '.join(differing)}")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(settings, indent=2) + "\n")

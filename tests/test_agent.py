@@ -1,0 +1,98 @@
+"""In-process SAC training: learned-reward environments, evaluation table, resumable runs, config."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from inest_agent_node.envs import LearnedRewardVecEnv, make_vec_env
+from inest_agent_node.evaluate import evaluate, format_table
+from inest_agent_node.train import Trainer
+from inest_reward_node.intrinsic import IntrinsicConfig
+from inest_reward_node.model import load_model
+from inest_reward_node.rewards import RewardScorer
+from inest_sim_node.expert import ScriptedExpert
+
+from inest_agent_node.config import SacConfig, TrainConfig
+from inest_sim_node import EnvConfig
+
+
+def test_evaluation_table_scores_the_expert_near_one_and_random_near_zero():
+    expert = ScriptedExpert()
+
+    def expert_policy(_observation, env):
+        if env.elapsed_steps == 0:
+            expert.reset(seed=0)
+        return expert.act(env)
+
+    rng = np.random.default_rng(0)
+    expert_result = evaluate(expert_policy, episodes=20)
+    random_result = evaluate(lambda _observation, _env: rng.uniform(-1, 1, 3), episodes=20)
+    assert expert_result.mean_score >= 0.85 and expert_result.success_rate >= 0.8
+    assert random_result.mean_score <= 0.1
+    for result in (expert_result, random_result):
+        assert sum(result.blocks_share) == pytest.approx(1.0)
+    table = format_table({"expert": expert_result, "random": random_result})
+    assert "expert" in table.splitlines()[1] and "random" in table.splitlines()[2]
+
+
+def test_learned_reward_replaces_the_environment_reward(tiny_tcc_run):
+    _, run_dir = tiny_tcc_run
+    model = load_model(run_dir / "model")
+    scorer = RewardScorer(model, 3, intrinsic=IntrinsicConfig(mode="embedding"), num_envs=2)
+    env = LearnedRewardVecEnv(make_vec_env(2, EnvConfig(max_steps=20), seed=0, frames=("ego", 48)), scorer)
+    env.reset()
+    rng = np.random.default_rng(0)
+    ends = 0
+    for _ in range(25):
+        _, rewards, dones, infos = env.step(rng.uniform(-1, 1, (2, 3)).astype(np.float32))
+        assert rewards.shape == (2,) and rewards.dtype == np.float32
+        assert all("env_reward" in info and "camera_frame" not in info for info in infos)
+        assert not np.allclose(rewards, [info["env_reward"] for info in infos])
+        ends += int(dones.sum())
+        for index in np.flatnonzero(dones):
+            assert scorer.trackers[index].completed == 0  # reset for the next episode
+    assert ends == 2  # both 20-step episodes ended once
+    assert sum(len(memory) for memory in scorer.memories) == 50  # memories kept across episode boundaries
+
+
+def tiny_config(total_steps: int) -> TrainConfig:
+    return TrainConfig(
+        reward="env",
+        intrinsic=IntrinsicConfig(mode="none"),
+        num_envs=2,
+        total_steps=total_steps,
+        eval_every=200,
+        eval_episodes=1,
+        final_eval_episodes=2,
+        checkpoint_every=200,
+        sac=SacConfig(learning_starts=100, buffer_size=5000, batch_size=32, net_arch=(32, 32)),
+    )
+
+
+def test_interrupted_training_resumes_with_its_step_counter_and_buffer(tmp_path):
+    first = Trainer(tiny_config(400), tmp_path / "run", progress_bar=False)
+    first.train()  # stands in for a run killed after its checkpoint at 400 steps
+    with pytest.raises(FileExistsError, match="--resume"):
+        Trainer(tiny_config(600), tmp_path / "run", progress_bar=False)
+    resumed = Trainer(tiny_config(600), tmp_path / "run", resume=True, progress_bar=False)
+    assert resumed.model.num_timesteps == 400
+    assert resumed.model.replay_buffer.size() == 200  # 400 steps of 2 environments
+    assert len(resumed.history) == 2  # evaluations at 200 and 400
+    result = resumed.train()
+    assert resumed.model.num_timesteps == 600 and resumed.model.replay_buffer.size() == 300
+    assert [point[0] for point in resumed.history] == [200, 400, 600]
+    assert result.episodes == 2
+    assert (tmp_path / "run" / "learning_curve.png").exists()
+
+
+def test_config_validation_and_yaml(tmp_path):
+    with pytest.raises(ValueError, match="needs a reward model folder"):
+        TrainConfig()
+    with pytest.raises(ValueError, match="belongs to the inest reward"):
+        TrainConfig(reward="xirl", model="m")
+    path = tmp_path / "train.yaml"
+    path.write_text("reward: env\nintrinsic: {mode: none}\nsac: {net_arch: [64, 64]}\n")
+    assert TrainConfig.from_yaml(path).sac.net_arch == (64, 64)
+    path.write_text("reward: env\nlearning_rate: 0.1\n")
+    with pytest.raises(ValueError, match=r"unknown training setting\(s\) \['learning_rate'\]"):
+        TrainConfig.from_yaml(path)

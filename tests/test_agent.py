@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
+
 import numpy as np
 import pytest
 from inest_agent_node.envs import LearnedRewardVecEnv, make_vec_env
@@ -96,3 +99,28 @@ def test_config_validation_and_yaml(tmp_path):
     path.write_text("reward: env\nlearning_rate: 0.1\n")
     with pytest.raises(ValueError, match=r"unknown training setting\(s\) \['learning_rate'\]"):
         TrainConfig.from_yaml(path)
+
+
+def test_resumed_inest_run_keeps_its_exploration_memories(tiny_tcc_run, tmp_path):
+    _, reward_run = tiny_tcc_run
+    config = TrainConfig(
+        reward="inest",
+        model=str(reward_run / "model"),
+        num_envs=2,
+        total_steps=200,
+        eval_every=200,
+        eval_episodes=1,
+        final_eval_episodes=1,
+        checkpoint_every=200,
+        sac=SacConfig(learning_starts=50, buffer_size=1000, batch_size=16, net_arch=(16, 16)),
+    )
+    first = Trainer(config, tmp_path / "run", progress_bar=False)
+    first.train()
+    sizes = [len(memory) for memory in first.env.scorer.memories]
+    assert sum(sizes) == 200  # every frame of both environments went into a subtask memory
+    results = json.loads((tmp_path / "run" / "results.json").read_text())
+    assert results["coverage"]["samples"] == 20  # every 10th vector step of 2 environments
+    assert (tmp_path / "run" / "coverage.png").exists()
+    resumed = Trainer(dataclasses.replace(config, total_steps=300), tmp_path / "run", resume=True, progress_bar=False)
+    assert [len(memory) for memory in resumed.env.scorer.memories] == sizes
+    np.testing.assert_array_equal(resumed.env.scorer.memories[0].contents(), first.env.scorer.memories[0].contents())

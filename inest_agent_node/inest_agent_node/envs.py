@@ -11,6 +11,7 @@ from typing import Any
 
 import gymnasium
 import numpy as np
+from inest_reward_node.intrinsic import NoveltyMemory
 from inest_reward_node.rewards import RewardScorer
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
 
@@ -51,11 +52,27 @@ def make_vec_env(num_envs: int, env_config: EnvConfig, seed: int, frames: tuple[
 class LearnedRewardVecEnv(VecEnvWrapper):
     """Replaces the environments' reward by the learned one; the oracle stays in info["env_reward"]."""
 
-    def __init__(self, venv: VecEnv, scorer: RewardScorer) -> None:
+    def __init__(self, venv: VecEnv, scorer: RewardScorer, record_every: int = 10) -> None:
         super().__init__(venv)
         if scorer.num_envs != venv.num_envs:
             raise ValueError(f"scorer tracks {scorer.num_envs} environments, the vector env has {venv.num_envs}")
         self.scorer = scorer
+        self.record_every = record_every
+        self.steps = 0
+        self.visited: list[np.ndarray] = []  # every `record_every`-th vector step's embeddings, for coverage
+
+    def exploration_state(self) -> dict[str, np.ndarray]:
+        """Novelty memories and the coverage record: what a resumed run must not forget."""
+        state = {f"memory_{i}": memory.contents() for i, memory in enumerate(self.scorer.memories)}
+        if self.visited:
+            state["visited"] = np.concatenate(self.visited)
+        return state
+
+    def restore_exploration(self, state: dict[str, np.ndarray]) -> None:
+        capacity = self.scorer.intrinsic.capacity
+        memories = sorted((key for key in state if key.startswith("memory_")), key=lambda key: int(key[7:]))
+        self.scorer.memories = [NoveltyMemory.restored(state[key], capacity) for key in memories]
+        self.visited = [state["visited"]] if "visited" in state else []
 
     def reset(self) -> np.ndarray:
         self.scorer.reset()
@@ -68,6 +85,9 @@ class LearnedRewardVecEnv(VecEnvWrapper):
             [info.get("terminal_observation", obs) for info, obs in zip(infos, observations, strict=True)]
         )
         parts = self.scorer.score(frames, states)
+        if self.steps % self.record_every == 0:
+            self.visited.append(parts.embeddings)
+        self.steps += 1
         for index, info in enumerate(infos):
             info["env_reward"] = float(env_rewards[index])
             info["learned_subtask"] = int(parts.subtask[index])

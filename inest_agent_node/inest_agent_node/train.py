@@ -1,9 +1,10 @@
 """Train SAC on the learned (or the environment's) reward, in one process (`inest-train`).
 
 Run folder: config.json (the full configuration), checkpoint/ (model.zip, replay_buffer.pkl,
-history.json: the `--resume` point, written every `checkpoint_every` steps), tensorboard/,
-and at the end results.json (final 150-episode evaluation, learning curve points, config)
-and learning_curve.png.
+history.json, exploration.npz with the novelty memories: the `--resume` point, written every
+`checkpoint_every` steps), tensorboard/,
+and at the end results.json (final 150-episode evaluation, learning curve points, coverage of
+the visited embeddings, config), learning_curve.png and coverage.png.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from inest_reward_node.coverage import measure_coverage, plot_coverage
 from inest_reward_node.intrinsic import INTRINSIC_MODES
 from inest_reward_node.model import ModelError, load_model
 from inest_reward_node.rewards import RewardScorer
@@ -36,6 +38,7 @@ from .evaluate import EvalResult, evaluate, format_table, plot_learning_curve
 
 CHECKPOINT_DIR = "checkpoint"
 RESULTS_FILE = "results.json"
+EXPLORATION_FILE = "exploration.npz"  # novelty memories and visited embeddings
 
 
 def build_env(config: TrainConfig) -> VecEnv:
@@ -113,6 +116,9 @@ class Trainer:
             )
             self.model.load_replay_buffer(checkpoint / "replay_buffer.pkl")
             self.history = json.loads((checkpoint / "history.json").read_text())
+            if isinstance(self.env, LearnedRewardVecEnv) and (checkpoint / EXPLORATION_FILE).exists():
+                with np.load(checkpoint / EXPLORATION_FILE) as state:
+                    self.env.restore_exploration({key: state[key] for key in state.files})
         else:
             settings = dataclasses.asdict(config.sac)
             net_arch = list(settings.pop("net_arch"))
@@ -137,6 +143,14 @@ class Trainer:
         write_atomic(checkpoint / "replay_buffer.pkl", lambda path: self.model.save_replay_buffer(path))
         write_atomic(checkpoint / "model.zip", lambda path: self.model.save(path))
         write_atomic(checkpoint / "history.json", lambda path: path.write_text(json.dumps(self.history)))
+        if isinstance(self.env, LearnedRewardVecEnv):
+            state = self.env.exploration_state()
+
+            def save_exploration(path: Path) -> None:
+                with open(path, "wb") as handle:
+                    np.savez(handle, **state)
+
+            write_atomic(checkpoint / EXPLORATION_FILE, save_exploration)
 
     def train(self) -> EvalResult:
         remaining = self.config.total_steps - self.model.num_timesteps
@@ -154,6 +168,16 @@ class Trainer:
             "learning_curve": self.history,
             "config": config.to_dict(),
         }
+        if isinstance(self.env, LearnedRewardVecEnv) and self.env.visited:
+            coverage = measure_coverage(np.concatenate(self.env.visited))
+            plot_coverage(coverage, self.run_dir / "coverage.png", f"{config.reward} reward: visited embeddings")
+            results["coverage"] = {
+                "samples": coverage.samples,
+                "grid_cells_occupied": coverage.occupied_cells,
+                "grid_fraction_occupied": coverage.occupied_fraction,
+                "unique_states": coverage.unique_states,
+                "recorded_every_vector_steps": self.env.record_every,
+            }
         (self.run_dir / RESULTS_FILE).write_text(json.dumps(results, indent=2) + "\n")
         reference = None
         if config.reward != "env":

@@ -63,6 +63,13 @@ class NoveltyMemory:
             return self.vectors[: self.size].copy()
         return np.concatenate([self.vectors[self.next :], self.vectors[: self.next]])
 
+    @classmethod
+    def restored(cls, contents: np.ndarray, capacity: int) -> NoveltyMemory:
+        """A memory holding `contents` (oldest first), as `contents()` returned them."""
+        memory = cls(contents.shape[1], capacity)
+        memory.add(contents)
+        return memory
+
     def add(self, vectors: np.ndarray) -> None:
         for vector in np.atleast_2d(vectors):
             self.vectors[self.next] = vector

@@ -63,6 +63,7 @@ class RewardParts:
     subtask: np.ndarray  # (N,) current subtask index after this frame
     completed: np.ndarray  # (N,) subtasks completed after this frame
     switched: np.ndarray  # (N,) bool, this frame completed a subtask
+    embeddings: np.ndarray  # (N, D) the frames' embeddings, for coverage analysis
 
 
 class RewardScorer:
@@ -141,7 +142,8 @@ class RewardScorer:
         self.steps_since_switch = np.where(
             switched, 0, np.where(self.steps_since_switch >= 0, self.steps_since_switch + 1, -1)
         )
-        return RewardParts(distance + bonus + intrinsic, distance, bonus, intrinsic, subtask, completed, switched)
+        total = distance + bonus + intrinsic
+        return RewardParts(total, distance, bonus, intrinsic, subtask, completed, switched, embeddings)
 
     def intrinsic_bonus(self, embeddings: np.ndarray, states: np.ndarray | None, subtasks: np.ndarray) -> np.ndarray:
         config = self.intrinsic

@@ -12,6 +12,7 @@ import sys
 import tempfile
 import time
 
+import numpy as np
 import torch
 from inest_agent_node.train import Trainer
 from inest_reward_node.intrinsic import IntrinsicConfig
@@ -19,16 +20,22 @@ from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_agent_node.config import SacConfig, TrainConfig
 
 WARM_UP_STEPS = 2_000  # random actions, then updates start
-TIMED_STEPS = 6_000
+ROUNDS, ROUND_STEPS = 5, 1_500  # the two runs alternate, so machine noise hits both alike
 
 
-def steps_per_second(config: TrainConfig) -> float:
-    with tempfile.TemporaryDirectory() as run_dir:
-        trainer = Trainer(config, run_dir, progress_bar=False)
-        trainer.model.learn(WARM_UP_STEPS + 4)
-        start = time.perf_counter()
-        trainer.model.learn(TIMED_STEPS, reset_num_timesteps=False)
-        return TIMED_STEPS / (time.perf_counter() - start)
+def interleaved_speeds(configs: dict[str, TrainConfig]) -> dict[str, float]:
+    """Median steps/s per config over alternating rounds of training after the warm-up."""
+    with tempfile.TemporaryDirectory() as root:
+        trainers = {name: Trainer(config, f"{root}/{name}", progress_bar=False) for name, config in configs.items()}
+        for trainer in trainers.values():
+            trainer.model.learn(WARM_UP_STEPS + 4)
+        speeds: dict[str, list[float]] = {name: [] for name in trainers}
+        for _ in range(ROUNDS):
+            for name, trainer in trainers.items():
+                start = time.perf_counter()
+                trainer.model.learn(ROUND_STEPS, reset_num_timesteps=False)
+                speeds[name].append(ROUND_STEPS / (time.perf_counter() - start))
+        return {name: float(np.median(values)) for name, values in speeds.items()}
 
 
 def main() -> None:
@@ -36,11 +43,16 @@ def main() -> None:
     torch.set_num_threads(2)
     common = {
         "num_envs": 4,
-        "total_steps": WARM_UP_STEPS + TIMED_STEPS,
+        "total_steps": WARM_UP_STEPS + ROUNDS * ROUND_STEPS,
         "sac": SacConfig(learning_starts=WARM_UP_STEPS),
     }
-    env_speed = steps_per_second(TrainConfig(reward="env", intrinsic=IntrinsicConfig(mode="none"), **common))
-    inest_speed = steps_per_second(TrainConfig(reward="inest", model=model, **common))
+    speeds = interleaved_speeds(
+        {
+            "env": TrainConfig(reward="env", intrinsic=IntrinsicConfig(mode="none"), **common),
+            "inest": TrainConfig(reward="inest", model=model, **common),
+        }
+    )
+    env_speed, inest_speed = speeds["env"], speeds["inest"]
     print(
         json.dumps(
             {

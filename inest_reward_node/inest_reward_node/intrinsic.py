@@ -50,6 +50,7 @@ class NoveltyMemory:
 
     def __init__(self, dim: int, capacity: int) -> None:
         self.vectors = np.zeros((capacity, dim), dtype=np.float32)
+        self.squared_norms = np.zeros(capacity, dtype=np.float32)  # kept with the vectors for fast k-NN
         self.capacity = capacity
         self.size = 0
         self.next = 0
@@ -73,6 +74,7 @@ class NoveltyMemory:
     def add(self, vectors: np.ndarray) -> None:
         for vector in np.atleast_2d(vectors):
             self.vectors[self.next] = vector
+            self.squared_norms[self.next] = np.dot(self.vectors[self.next], self.vectors[self.next])
             self.next = (self.next + 1) % self.capacity
             self.size = min(self.size + 1, self.capacity)
 
@@ -83,7 +85,7 @@ class NoveltyMemory:
             return np.zeros(len(queries))
         stored = self.vectors[: self.size]
         squared = (
-            np.square(queries).sum(1, keepdims=True) - 2.0 * queries @ stored.T + np.square(stored).sum(1)[None, :]
+            np.square(queries).sum(1, keepdims=True) - 2.0 * queries @ stored.T + self.squared_norms[None, : self.size]
         )
         kth = min(k, self.size) - 1
         return np.sqrt(np.maximum(np.partition(squared, kth, axis=1)[:, kth], 0.0))

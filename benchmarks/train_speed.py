@@ -2,7 +2,8 @@
 
 Prints one JSON object. Target (issue 4): INEST >= 0.8x the env-reward speed (the encoder
 must not be the bottleneck). Needs a reward model: `train_speed.py [MODEL_FOLDER]`
-(default runs/pretrain-main/model, which `scripts/run_main.sh` creates).
+(default runs/pretrain-main/model, which `scripts/run_main.sh` creates), optionally
+followed by the torch thread count (default: the training config's).
 """
 
 from __future__ import annotations
@@ -40,8 +41,10 @@ def interleaved_speeds(configs: dict[str, TrainConfig]) -> dict[str, float]:
 
 def main() -> None:
     model = sys.argv[1] if len(sys.argv) > 1 else "runs/pretrain-main/model"
-    torch.set_num_threads(2)
+    threads = int(sys.argv[2]) if len(sys.argv) > 2 else TrainConfig.threads
+    torch.set_num_threads(threads)
     common = {
+        "threads": threads,
         "num_envs": 4,
         "total_steps": WARM_UP_STEPS + ROUNDS * ROUND_STEPS,
         "sac": SacConfig(learning_starts=WARM_UP_STEPS),
@@ -61,6 +64,7 @@ def main() -> None:
                 "inest_reward_steps_per_s": round(inest_speed),
                 "ratio": round(inest_speed / env_speed, 3),
                 "target_ratio": 0.8,
+                "threads": threads,
                 "settings": "default SAC config, 4 envs; inest: 3 subtasks + embedding bonus",
             }
         )

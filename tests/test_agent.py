@@ -124,3 +124,18 @@ def test_resumed_inest_run_keeps_its_exploration_memories(tiny_tcc_run, tmp_path
     resumed = Trainer(dataclasses.replace(config, total_steps=300), tmp_path / "run", resume=True, progress_bar=False)
     assert [len(memory) for memory in resumed.env.scorer.memories] == sizes
     np.testing.assert_array_equal(resumed.env.scorer.memories[0].contents(), first.env.scorer.memories[0].contents())
+
+
+def test_command_line_flags_override_the_config_file(tmp_path):
+    from inest_agent_node.train import parse_args
+
+    path = tmp_path / "train.yaml"
+    path.write_text("reward: inest\nmodel: m\nintrinsic: {mode: embedding, k: 5}\nsac: {batch_size: 64}\n")
+    config, _ = parse_args(["--out", "x", "--config", str(path), "--intrinsic", "state", "--total-steps", "1000"])
+    assert (config.intrinsic.mode, config.intrinsic.k, config.total_steps) == ("state", 5, 1000)
+    assert config.sac.batch_size == 64
+    config, _ = parse_args(["--out", "x", "--config", str(path), "--reward", "env"])
+    assert config.reward == "env" and config.intrinsic.mode == "none"
+    path.write_text("num_envs: 2\n")  # a partial file: the model comes from the command line
+    config, _ = parse_args(["--out", "x", "--config", str(path), "--reward", "xirl", "--model", "m"])
+    assert (config.reward, config.model, config.num_envs, config.intrinsic.mode) == ("xirl", "m", 2, "none")

@@ -70,6 +70,8 @@ class TrainConfig:
         if unknown:
             raise ValueError(f"unknown training setting(s) {unknown}; expected some of {sorted(known)}")
         values = dict(data)
+        if values.get("reward", "inest") != "inest" and "intrinsic" not in values:
+            values["intrinsic"] = IntrinsicConfig(mode="none")  # the bonus belongs to the inest reward
         if isinstance(values.get("intrinsic"), dict):
             values["intrinsic"] = IntrinsicConfig(**values["intrinsic"])
         if isinstance(values.get("sac"), dict):
@@ -80,8 +82,17 @@ class TrainConfig:
         return cls(**values)
 
     @classmethod
-    def from_yaml(cls, path: str | Path) -> TrainConfig:
+    def from_yaml(cls, path: str | Path, overrides: dict[str, Any] | None = None) -> TrainConfig:
+        """Settings from a YAML file, then `overrides` (command-line flags) on top."""
         data = yaml.safe_load(Path(path).read_text()) or {}
         if not isinstance(data, dict):
             raise ValueError(f"{path} must hold a mapping of training settings")
-        return cls.from_dict(data)
+        return cls.from_dict(merge_settings(data, overrides or {}))
+
+
+def merge_settings(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+    """`overrides` on top of `base`, nested mappings (intrinsic, sac) merged key by key."""
+    merged = dict(base)
+    for key, value in overrides.items():
+        merged[key] = {**merged.get(key, {}), **value} if isinstance(value, dict) else value
+    return merged

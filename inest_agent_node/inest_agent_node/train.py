@@ -32,7 +32,7 @@ from tqdm import tqdm
 
 from inest_sim_node import EnvConfig
 
-from .config import REWARDS, TrainConfig
+from .config import REWARDS, TrainConfig, merge_settings
 from .envs import LearnedRewardVecEnv, make_vec_env
 from .evaluate import EvalResult, evaluate, format_table, plot_learning_curve
 
@@ -220,19 +220,18 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     for name in INTEGER_FLAGS:
         parser.add_argument(f"--{name.replace('_', '-')}", type=int)
     args = parser.parse_args(argv)
-    config = TrainConfig.from_yaml(args.config) if args.config else None
-    overrides = {
+    overrides: dict[str, Any] = {
         name: getattr(args, name)
         for name in ("reward", "model", "subtasks", "view", *INTEGER_FLAGS)
         if getattr(args, name) is not None
     }
-    base = config.to_dict() if config else {}
-    base.update(overrides)
     if args.intrinsic is not None:
-        base["intrinsic"] = {**base.get("intrinsic", {}), "mode": args.intrinsic}
-    elif base.get("reward", "inest") != "inest":
-        base["intrinsic"] = {**base.get("intrinsic", {}), "mode": "none"}
-    return TrainConfig.from_dict(base), args
+        overrides["intrinsic"] = {"mode": args.intrinsic}
+    elif overrides.get("reward", "inest") != "inest":
+        overrides["intrinsic"] = {"mode": "none"}  # --reward env|xirl|holdr on an inest config file
+    if args.config:
+        return TrainConfig.from_yaml(args.config, overrides), args
+    return TrainConfig.from_dict(merge_settings({}, overrides)), args
 
 
 def main(argv: list[str] | None = None) -> int:

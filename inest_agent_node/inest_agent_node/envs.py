@@ -36,16 +36,12 @@ class CameraFrameInInfo(gymnasium.Wrapper):
 def make_vec_env(num_envs: int, env_config: EnvConfig, seed: int, frames: tuple[str, int] | None = None) -> VecEnv:
     """N in-process environments on seeds seed, seed + 1, ...; `frames` = (view, size) adds camera frames."""
 
-    def factory(index: int):
-        def make() -> gymnasium.Env:
-            env = SweepToTopEnv(config=env_config)
-            env.reset(seed=seed + index)
-            return CameraFrameInInfo(env, *frames) if frames else env
+    def make() -> gymnasium.Env:
+        env = SweepToTopEnv(config=env_config)
+        return CameraFrameInInfo(env, *frames) if frames else env
 
-        return make
-
-    venv = DummyVecEnv([factory(index) for index in range(num_envs)])
-    venv.seed(seed)
+    venv = DummyVecEnv([make] * num_envs)
+    venv.seed(seed)  # the first reset of environment i uses seed + i
     return venv
 
 

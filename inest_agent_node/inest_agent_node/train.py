@@ -45,9 +45,9 @@ def build_env(config: TrainConfig) -> VecEnv:
     env_config = EnvConfig(view=config.view)
     if config.reward == "env":
         return make_vec_env(config.num_envs, env_config, config.seed)
-    model = load_model(config.model, view=config.view, scheme=config.subtasks if config.reward == "inest" else 1)
-    frames = (config.view, model.image_size)
     scheme = config.subtasks if config.reward == "inest" else 1
+    model = load_model(config.model, view=config.view, scheme=scheme)
+    frames = (config.view, model.image_size)
     scorer = RewardScorer(model, scheme, config.reward, config.intrinsic, config.num_envs)
     return LearnedRewardVecEnv(make_vec_env(config.num_envs, env_config, config.seed, frames), scorer)
 

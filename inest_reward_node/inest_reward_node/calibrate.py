@@ -37,10 +37,15 @@ def xirl_distance_scale(embeddings: Sequence[np.ndarray], final_goal: np.ndarray
     return float(1.0 / max(np.linalg.norm(first - final_goal, axis=1).mean(), 1e-8))
 
 
+def subtask_starts(ends: np.ndarray) -> np.ndarray:
+    """First frame of each subtask: frame 0, then the frame after the previous subtask ended."""
+    return np.concatenate([[0], np.asarray(ends[:-1]) + 1])
+
+
 def subtask_windows(ends: np.ndarray, hold_steps: int) -> list[slice]:
     """The last `hold_steps` frames of each subtask, never reaching back into the previous one
     (a subtask that ends on the same frame as the one before it keeps just that frame)."""
-    starts = np.concatenate([[0], np.asarray(ends[:-1]) + 1])
+    starts = subtask_starts(ends)
     return [
         slice(min(max(int(start), int(end) - hold_steps + 1), int(end)), int(end) + 1)
         for start, end in zip(starts, ends, strict=True)

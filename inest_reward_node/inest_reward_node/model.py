@@ -77,6 +77,7 @@ class RewardModel:
         self.encoder_config = EncoderConfig(**metadata["encoder"])
         self.shaping = ShapingConfig(**metadata["shaping"])
         self.subtasks = {int(scheme): SubtaskGoals.from_dict(goals) for scheme, goals in metadata["subtasks"].items()}
+        self._steps_at_goal: dict[bytes, float] = {}  # HOLD-R's d(g, g), fixed per goal
 
     @property
     def image_size(self) -> int:
@@ -107,6 +108,13 @@ class RewardModel:
         frames = torch.as_tensor(embeddings, dtype=torch.float32)
         goals = torch.as_tensor(goal, dtype=torch.float32).expand_as(frames)
         return (self.network.gap(frames, goals) * self.network.config.steps_unit).numpy()
+
+    def holdr_steps_at_goal(self, goal: np.ndarray) -> float:
+        """d(g, g): computed once per goal, not on every scored frame."""
+        key = np.asarray(goal, dtype=np.float32).tobytes()
+        if key not in self._steps_at_goal:
+            self._steps_at_goal[key] = float(self.holdr_steps(goal[None], goal)[0])
+        return self._steps_at_goal[key]
 
 
 def save_model(folder: str | Path, network: nn.Module, metadata: dict[str, Any]) -> None:

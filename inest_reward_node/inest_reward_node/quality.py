@@ -30,6 +30,7 @@ from inest_sim_node.dataset import DatasetError
 from scipy.stats import spearmanr
 from tqdm import tqdm
 
+from .calibrate import subtask_starts
 from .data import Demo, load_demos
 from .model import ModelError, RewardModel, load_model
 from .rewards import Replay, default_variant, replay
@@ -51,10 +52,6 @@ def cosine_similarity(embeddings: np.ndarray, goal: np.ndarray) -> np.ndarray:
 def ground_truth_gaussian(length: int, start: int, end: int) -> np.ndarray:
     sigma = max((end - start + 1) / 2.0, 1.0)
     return np.exp(-0.5 * ((np.arange(length) - end) / sigma) ** 2)
-
-
-def subtask_starts(ends: np.ndarray) -> np.ndarray:
-    return np.concatenate([[0], np.asarray(ends[:-1]) + 1])
 
 
 def rank_correlation(a: np.ndarray, b: np.ndarray) -> float:

@@ -38,6 +38,11 @@ def check_variant(model: RewardModel, variant: str, scheme: int) -> None:
         raise ModelError(f"the xirl reward has one goal embedding; it cannot use {scheme} subtasks")
 
 
+def inest_distance_unit(model: RewardModel, goals: SubtaskGoals) -> float:
+    """Factor from raw embedding distance to the units r(d) is applied in (see ShapingConfig.start_distance)."""
+    return goals.distance_scale * model.shaping.start_distance
+
+
 def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:
     """(N, subtasks): each frame's completion-test reward against every subtask goal."""
     if model.method == "holdr":
@@ -45,11 +50,10 @@ def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGo
         columns = []
         for goal in goals.goals:
             to_goal = model.holdr_steps(embeddings, goal)
-            at_goal = model.holdr_steps(goal[None], goal)[0]
-            columns.append(-np.maximum(0.0, to_goal - at_goal) / horizon)
+            columns.append(-np.maximum(0.0, to_goal - model.holdr_steps_at_goal(goal)) / horizon)
         return np.stack(columns, axis=1)
     distances = np.linalg.norm(embeddings[:, None, :] - goals.goals[None], axis=-1)
-    return distance_reward(distances * goals.distance_scale * model.shaping.start_distance, model.shaping)
+    return distance_reward(distances * inest_distance_unit(model, goals), model.shaping)
 
 
 @dataclass
@@ -154,7 +158,7 @@ class RewardScorer:
                 raise ValueError("the state intrinsic bonus needs the environments' state vectors")
             vectors = np.asarray(states, dtype=np.float32)
         else:  # embedding distances in the same units as the INEST reward's d
-            vectors = embeddings * self.goals.distance_scale * self.model.shaping.start_distance
+            vectors = embeddings * inest_distance_unit(self.model, self.goals)
         if not self.memories:
             self.memories = [NoveltyMemory(vectors.shape[1], config.capacity) for _ in range(self.num_subtasks)]
         novelty = np.zeros(self.num_envs)

@@ -22,6 +22,7 @@ setup(
     python_requires=">=3.11",
     entry_points={
         "console_scripts": [
+            "inest-agent-node = inest_agent_node.node:main",
             "inest-train = inest_agent_node.train:main",
         ],
     },

@@ -24,6 +24,7 @@ setup(
     python_requires=">=3.11",
     entry_points={
         "console_scripts": [
+            "inest-reward-node = inest_reward_node.node:main",
             "inest-pretrain = inest_reward_node.pretrain:main",
             "inest-reward-quality = inest_reward_node.quality:main",
         ],

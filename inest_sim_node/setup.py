@@ -21,6 +21,7 @@ setup(
     python_requires=">=3.11",
     entry_points={
         "console_scripts": [
+            "inest-sim-node = inest_sim_node.node:main",
             "inest-collect-demos = inest_sim_node.collect:main",
             "inest-export-video = inest_sim_node.video:main",
         ],

@@ -9,7 +9,7 @@ from typing import Any
 import yaml
 from inest_reward_node.intrinsic import IntrinsicConfig
 
-REWARDS = ("env", "xirl", "holdr", "inest")
+REWARDS = ("env", "xirl", "holdr", "inest", "topic")  # topic: served by inest_reward_node (graph only)
 
 
 @dataclass(frozen=True)
@@ -32,7 +32,7 @@ class SacConfig:
 
 @dataclass(frozen=True)
 class TrainConfig:
-    reward: str = "inest"  # env (oracle) | xirl | holdr | inest
+    reward: str = "inest"  # env (oracle) | xirl | holdr | inest | topic (the reward node's, over the graph)
     model: str | None = None  # reward model folder (inest-pretrain's model/); not used by "env"
     subtasks: int = 3  # inest: 1, 3 or 6
     view: str = "ego"
@@ -50,7 +50,7 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if self.reward not in REWARDS:
             raise ValueError(f"unknown reward {self.reward!r}; expected one of {REWARDS}")
-        if self.reward != "env" and not self.model:
+        if self.reward not in ("env", "topic") and not self.model:
             raise ValueError(f"the {self.reward} reward needs a reward model folder (model)")
         if self.reward != "inest" and self.intrinsic.mode != "none":
             raise ValueError(f"the intrinsic bonus belongs to the inest reward, not {self.reward}")

@@ -29,6 +29,19 @@ class EvalResult:
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
+    @classmethod
+    def from_scores(cls, scores: list[float]) -> EvalResult:
+        """From each episode's final score (k / 3)."""
+        scores_array = np.array(scores, dtype=float)
+        blocks = np.rint(scores_array * NUM_BLOCKS).astype(int)
+        return cls(
+            episodes=len(scores),
+            mean_score=float(scores_array.mean()),
+            score_std=float(scores_array.std()),
+            success_rate=float(np.mean(blocks == NUM_BLOCKS)),
+            blocks_share=[float(np.mean(blocks == count)) for count in range(NUM_BLOCKS + 1)],
+        )
+
 
 def evaluate(policy: Policy, episodes: int = 150, env_config: EnvConfig | None = None, seed: int = 0) -> EvalResult:
     """Run `policy(observation, env)` for `episodes` full episodes; the score is the one at the end."""
@@ -42,15 +55,7 @@ def evaluate(policy: Policy, episodes: int = 150, env_config: EnvConfig | None =
             done = terminated or truncated
         scores.append(float(info["score"]))
     env.close()
-    scores_array = np.array(scores)
-    blocks = np.rint(scores_array * NUM_BLOCKS).astype(int)
-    return EvalResult(
-        episodes=episodes,
-        mean_score=float(scores_array.mean()),
-        score_std=float(scores_array.std()),
-        success_rate=float(np.mean(blocks == NUM_BLOCKS)),
-        blocks_share=[float(np.mean(blocks == count)) for count in range(NUM_BLOCKS + 1)],
-    )
+    return EvalResult.from_scores(scores)
 
 
 def format_table(rows: dict[str, EvalResult]) -> str:

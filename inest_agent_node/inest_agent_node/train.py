@@ -43,6 +43,8 @@ EXPLORATION_FILE = "exploration.npz"  # novelty memories and visited embeddings
 
 def build_env(config: TrainConfig) -> VecEnv:
     env_config = EnvConfig(view=config.view)
+    if config.reward == "topic":
+        raise ValueError("the topic reward comes from inest_reward_node: train over the graph (inest-agent-node)")
     if config.reward == "env":
         return make_vec_env(config.num_envs, env_config, config.seed)
     scheme = config.subtasks if config.reward == "inest" else 1
@@ -101,14 +103,23 @@ class TrainingCallback(BaseCallback):
 
 
 class Trainer:
-    def __init__(self, config: TrainConfig, run_dir: str | Path, resume: bool = False, progress_bar: bool = True):
+    """SAC on in-process environments built from the config, or on `env` (the ROS graph's)."""
+
+    def __init__(
+        self,
+        config: TrainConfig,
+        run_dir: str | Path,
+        resume: bool = False,
+        progress_bar: bool = True,
+        env: VecEnv | None = None,
+    ):
         self.config = config
         self.run_dir = Path(run_dir)
         self.progress_bar = progress_bar
         self.history: list[list[float]] = []
         self.check_run_dir(resume)
         torch.set_num_threads(config.threads)
-        self.env = build_env(config)
+        self.env = env if env is not None else build_env(config)
         checkpoint = self.run_dir / CHECKPOINT_DIR
         if resume and (checkpoint / "model.zip").exists():
             self.model = SAC.load(

@@ -109,18 +109,34 @@ class RewardScorer:
             self.trackers[index].reset()
             self.steps_since_switch[index] = -1
 
-    def score(self, frames: np.ndarray, states: np.ndarray | None = None) -> RewardParts:
-        """frames: (N, H, W, 3) uint8, one per environment, in environment order."""
-        return self.score_embeddings(self.model.embed(frames), states)
+    def score(
+        self, frames: np.ndarray, states: np.ndarray | None = None, envs: np.ndarray | None = None
+    ) -> RewardParts:
+        """frames: (N, H, W, 3) uint8. Without `envs`, one frame per environment in environment order;
+        with it, frame i belongs to environment envs[i] (a subset, repeats allowed and taken in order)."""
+        return self.score_embeddings(self.model.embed(frames), states, envs)
 
-    def score_embeddings(self, embeddings: np.ndarray, states: np.ndarray | None = None) -> RewardParts:
-        return self.advance(subtask_rewards(self.model, embeddings, self.goals), embeddings, states)
+    def score_embeddings(
+        self, embeddings: np.ndarray, states: np.ndarray | None = None, envs: np.ndarray | None = None
+    ) -> RewardParts:
+        return self.advance(subtask_rewards(self.model, embeddings, self.goals), embeddings, states, envs)
 
-    def advance(self, per_subtask: np.ndarray, embeddings: np.ndarray, states: np.ndarray | None) -> RewardParts:
-        """Move every tracker one frame on, given each frame's reward against every subtask goal."""
-        if len(per_subtask) != self.num_envs:
-            raise ValueError(f"expected one frame per environment ({self.num_envs}), got {len(per_subtask)}")
-        count = self.num_envs
+    def advance(
+        self,
+        per_subtask: np.ndarray,
+        embeddings: np.ndarray,
+        states: np.ndarray | None,
+        envs: np.ndarray | None = None,
+    ) -> RewardParts:
+        """Move the frames' trackers one frame on, given each frame's reward against every subtask goal."""
+        if envs is None:
+            if len(per_subtask) != self.num_envs:
+                raise ValueError(f"expected one frame per environment ({self.num_envs}), got {len(per_subtask)}")
+            envs = np.arange(self.num_envs)
+        envs = np.asarray(envs, dtype=int)
+        if len(envs) != len(per_subtask) or np.any((envs < 0) | (envs >= self.num_envs)):
+            raise ValueError(f"environment indices {envs.tolist()} do not fit {len(per_subtask)} frames")
+        count = len(envs)
         distance, bonus, subtask, completed = (
             np.zeros(count),
             np.zeros(count),
@@ -128,31 +144,36 @@ class RewardScorer:
             np.zeros(count, int),
         )
         switched = np.zeros(count, bool)
-        novelty_subtask = np.zeros(count, int)
-        for index, (tracker, row) in enumerate(zip(self.trackers, per_subtask, strict=True)):
-            novelty_subtask[index] = tracker.current  # novelty is judged within the subtask the frame was taken in
+        novelty_subtask, since_switch = np.zeros(count, int), np.zeros(count, int)
+        for row, (env, rewards) in enumerate(zip(envs, per_subtask, strict=True)):
+            tracker = self.trackers[env]
+            novelty_subtask[row] = tracker.current  # novelty is judged within the subtask the frame was taken in
+            since_switch[row] = self.steps_since_switch[env]
             was_done = tracker.done
-            reward_now = row[tracker.current]
-            switched[index] = tracker.update(reward_now)
+            reward_now = rewards[tracker.current]
+            switched[row] = tracker.update(reward_now)
             if self.variant == "inest":
-                distance[index] = 0.0 if was_done else reward_now
-                bonus[index] = tracker.completed * self.model.shaping.subtask_bonus
+                distance[row] = 0.0 if was_done else reward_now
+                bonus[row] = tracker.completed * self.model.shaping.subtask_bonus
             else:
-                distance[index] = row[-1]
-            subtask[index], completed[index] = tracker.current, tracker.completed
+                distance[row] = rewards[-1]
+            subtask[row], completed[row] = tracker.current, tracker.completed
+            if switched[row]:
+                self.steps_since_switch[env] = 0
+            elif self.steps_since_switch[env] >= 0:
+                self.steps_since_switch[env] += 1
         if self.variant == "xirl":
             distance = -self.goals.distance_scale * np.linalg.norm(embeddings - self.goals.goals[-1], axis=1)
-        intrinsic = self.intrinsic_bonus(embeddings, states, novelty_subtask)
-        self.steps_since_switch = np.where(
-            switched, 0, np.where(self.steps_since_switch >= 0, self.steps_since_switch + 1, -1)
-        )
+        intrinsic = self.intrinsic_bonus(embeddings, states, novelty_subtask, since_switch)
         total = distance + bonus + intrinsic
         return RewardParts(total, distance, bonus, intrinsic, subtask, completed, switched, embeddings)
 
-    def intrinsic_bonus(self, embeddings: np.ndarray, states: np.ndarray | None, subtasks: np.ndarray) -> np.ndarray:
+    def intrinsic_bonus(
+        self, embeddings: np.ndarray, states: np.ndarray | None, subtasks: np.ndarray, since_switch: np.ndarray
+    ) -> np.ndarray:
         config = self.intrinsic
         if config.mode == "none":
-            return np.zeros(self.num_envs)
+            return np.zeros(len(subtasks))
         if config.mode == "state":
             if states is None:
                 raise ValueError("the state intrinsic bonus needs the environments' state vectors")
@@ -161,12 +182,12 @@ class RewardScorer:
             vectors = embeddings * inest_distance_unit(self.model, self.goals)
         if not self.memories:
             self.memories = [NoveltyMemory(vectors.shape[1], config.capacity) for _ in range(self.num_subtasks)]
-        novelty = np.zeros(self.num_envs)
+        novelty = np.zeros(len(subtasks))
         for subtask in np.unique(subtasks):
             members = subtasks == subtask
             novelty[members] = self.memories[subtask].novelty(vectors[members], config.k)
             self.memories[subtask].add(vectors[members])
-        return config.weight_after(self.steps_since_switch) * novelty
+        return config.weight_after(since_switch) * novelty
 
 
 @dataclass

@@ -1,0 +1,177 @@
+"""A stable-baselines3 VecEnv whose environments are simulators (and a reward node) on ROS 2 topics.
+
+Environment i lives under namespace `namespaces[i]`: it publishes `action`, and waits for the
+`episode_status` answering that action, then the `state` and `reward` stamped like it (see
+pairing.py). Resets go through the simulator's `reset` and the reward node's `reset_reward`
+services. When something stays silent for `timeout` seconds, it logs which topic of which
+simulator, re-sends the action (a lockstep simulator re-publishes a step it already took) and
+keeps waiting: a restarted reward node or simulator picks the run up where it stopped.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from inest_interfaces.msg import Action, EpisodeStatus, Reward, State
+from inest_interfaces.srv import ResetEpisode
+from inest_sim_node.rosutil import namespaced, ns_stamp, stamp_ns
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from stable_baselines3.common.vec_env import VecEnv
+from std_srvs.srv import Trigger
+
+from inest_sim_node import SweepToTopEnv
+
+from .pairing import REWARD, STATE, StepMailbox
+
+
+class GraphVecEnv(VecEnv):
+    def __init__(self, node: Node, namespaces: list[str], learned_reward: bool = True, timeout: float = 5.0) -> None:
+        reference = SweepToTopEnv()  # spaces only; the simulation runs in the simulator nodes
+        super().__init__(len(namespaces), reference.observation_space, reference.action_space)
+        self.node, self.namespaces, self.learned_reward, self.timeout = node, namespaces, learned_reward, timeout
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(node)
+        qos = QoSProfile(depth=10)
+        self.mailboxes = [StepMailbox(learned_reward) for _ in namespaces]
+        self.action_pubs, self.sim_resets, self.reward_resets = [], [], []
+        for index, namespace in enumerate(namespaces):
+            self.action_pubs.append(node.create_publisher(Action, namespaced(namespace, "action"), qos))
+            node.create_subscription(
+                EpisodeStatus, namespaced(namespace, "episode_status"), lambda m, i=index: self.on_status(i, m), qos
+            )
+            node.create_subscription(State, namespaced(namespace, "state"), lambda m, i=index: self.on_state(i, m), qos)
+            self.sim_resets.append(node.create_client(ResetEpisode, namespaced(namespace, "reset")))
+            if learned_reward:
+                node.create_subscription(
+                    Reward, namespaced(namespace, "reward"), lambda m, i=index: self.on_reward(i, m), qos
+                )
+                self.reward_resets.append(node.create_client(Trigger, namespaced(namespace, "reset_reward")))
+        self.stamps = np.zeros(self.num_envs, dtype=np.int64)  # each environment's current observation
+        self.actions = np.zeros((self.num_envs, 3), dtype=np.float32)
+
+    # --- message intake ------------------------------------------------------------
+    def on_status(self, index: int, msg: EpisodeStatus) -> None:
+        self.mailboxes[index].put_status(stamp_ns(msg.action_stamp), stamp_ns(msg.header.stamp), msg)
+
+    def on_state(self, index: int, msg: State) -> None:
+        self.mailboxes[index].put(STATE, stamp_ns(msg.header.stamp), msg)
+
+    def on_reward(self, index: int, msg: Reward) -> None:
+        self.mailboxes[index].put(REWARD, stamp_ns(msg.header.stamp), msg)
+
+    # --- waiting without ever giving up ----------------------------------------------
+    def wait_until(self, ready, describe, resend=None) -> None:
+        """Spin until `ready()`; every `timeout` seconds log `describe()` and call `resend()`."""
+        deadline = time.monotonic() + self.timeout
+        while not ready():
+            self.executor.spin_once(timeout_sec=0.05)
+            if time.monotonic() > deadline:
+                self.node.get_logger().warning(f"still waiting after {self.timeout:.0f} s: {describe()}")
+                if resend is not None:
+                    resend()
+                deadline = time.monotonic() + self.timeout
+
+    def call(self, client, request, what: str):
+        while not client.service_is_ready():
+            self.wait_until(client.service_is_ready, lambda: f"service {client.srv_name} ({what}) is not available")
+        future = client.call_async(request)
+        self.wait_until(future.done, lambda: f"no answer from {client.srv_name} ({what})")
+        return future.result()
+
+    # --- VecEnv --------------------------------------------------------------------------
+    def reset_env(self, index: int, seed: int | None) -> np.ndarray:
+        if self.learned_reward:
+            self.call(self.reward_resets[index], Trigger.Request(), "reward tracker reset")
+        response = self.call(self.sim_resets[index], ResetEpisode.Request(seed=-1 if seed is None else seed), "reset")
+        if not response.success:
+            raise RuntimeError(f"{self.namespaces[index] or 'simulator'} refused to reset: {response.message}")
+        self.stamps[index] = stamp_ns(response.header.stamp)
+        self.mailboxes[index].forget_before(int(self.stamps[index]))
+        return np.asarray(response.state, dtype=np.float32)
+
+    def reset(self) -> np.ndarray:
+        observations = np.stack([self.reset_env(i, self._seeds[i]) for i in range(self.num_envs)])
+        self._reset_seeds()
+        self._reset_options()
+        return observations
+
+    def publish_action(self, index: int) -> None:
+        msg = Action(values=self.actions[index].tolist())
+        msg.header.stamp = ns_stamp(int(self.stamps[index]))
+        self.action_pubs[index].publish(msg)
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self.actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
+        for index in range(self.num_envs):
+            self.publish_action(index)
+
+    def step_wait(self):
+        results: dict[int, tuple[int, dict[str, Any]]] = {}
+
+        def collect() -> bool:
+            for index in range(self.num_envs):
+                if index not in results:
+                    taken = self.mailboxes[index].take(int(self.stamps[index]))
+                    if taken is not None:
+                        results[index] = taken
+            return len(results) == self.num_envs
+
+        def silent() -> str:
+            return "; ".join(
+                f"{self.namespaces[i] or '/'}: {', '.join(self.mailboxes[i].missing(int(self.stamps[i])))}"
+                for i in range(self.num_envs)
+                if i not in results
+            )
+
+        def resend() -> None:
+            for index in range(self.num_envs):
+                if index not in results:
+                    self.publish_action(index)
+
+        self.wait_until(collect, silent, resend)
+        observations = np.zeros((self.num_envs, *self.observation_space.shape), dtype=np.float32)
+        rewards = np.zeros(self.num_envs, dtype=np.float32)
+        dones = np.zeros(self.num_envs, dtype=bool)
+        infos: list[dict[str, Any]] = []
+        for index in range(self.num_envs):
+            new_stamp, messages = results[index]
+            status = messages["episode_status"]
+            observation = np.asarray(messages[STATE].values, dtype=np.float32)
+            info: dict[str, Any] = {"env_reward": status.env_reward, "score": status.score}
+            if self.learned_reward:
+                reward = messages[REWARD]
+                rewards[index] = reward.total
+                info["learned_subtask"], info["intrinsic_reward"] = reward.subtask, reward.intrinsic_bonus
+            else:
+                rewards[index] = status.env_reward
+            self.stamps[index] = new_stamp
+            dones[index] = status.terminated or status.truncated
+            if dones[index]:
+                info["TimeLimit.truncated"] = status.truncated and not status.terminated
+                info["terminal_observation"] = observation
+                observation = self.reset_env(index, None)
+            observations[index] = observation
+            infos.append(info)
+        return observations, rewards, dones, infos
+
+    def close(self) -> None:
+        self.executor.shutdown()
+
+    # --- the parts of the VecEnv interface that only in-process environments have ---------
+    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        if attr_name == "render_mode":
+            return [None] * self.num_envs
+        raise AttributeError(f"simulators on the graph have no attribute {attr_name!r} to read")
+
+    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        raise AttributeError(f"cannot set {attr_name!r} on simulators over the graph")
+
+    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+        raise AttributeError(f"cannot call {method_name!r} on simulators over the graph")
+
+    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+        return [False] * self.num_envs

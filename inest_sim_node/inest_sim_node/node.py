@@ -1,0 +1,171 @@
+"""`inest-sim-node`: the simulator as a ROS 2 node (a thin adapter over SweepToTopEnv).
+
+Publishes, all stamped with simulated time (one control period per step and per reset, so
+every observation has its own stamp): `camera/<view>/image_raw` (sensor_msgs/Image, rgb8) for
+each view in `cameras`, `state` (inest_interfaces/State), `episode_status`
+(inest_interfaces/EpisodeStatus) and `/clock`. Subscribes to `action` (inest_interfaces/Action);
+serves `reset` (inest_interfaces/ResetEpisode).
+
+Modes:
+- lockstep (training): one step per action, applied only if the action's stamp is the current
+  observation's stamp. An action answering the previous observation again (the agent timed out
+  waiting) re-publishes that step's outputs instead of stepping twice.
+- realtime (watching, teleoperation, a live policy): steps at the control rate holding the last
+  action, starting a new episode after each truncation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from inest_interfaces.msg import Action, EpisodeStatus, State
+from inest_interfaces.srv import ResetEpisode
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Image
+
+from .config import VIEWS, EnvConfig
+from .env import SweepToTopEnv, validate_action
+from .rosutil import declare_dataclass, ns_stamp, run_node, stamp_ns
+
+MODES = ("lockstep", "realtime")
+
+
+@dataclass(frozen=True)
+class SimNodeConfig:
+    mode: str = "lockstep"
+    cameras: tuple[str, ...] = VIEWS
+    image_size: int = 96
+    seed: int = 0  # episode i (0, 1, ...) uses seed + i unless a reset asks for a seed
+    max_steps: int = 100
+    publish_clock: bool = True  # one simulator per graph should own /clock
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"unknown mode {self.mode!r}; expected one of {MODES}")
+        unknown = set(self.cameras) - set(VIEWS)
+        if unknown or not self.cameras:
+            raise ValueError(f"cameras must be a non-empty subset of {VIEWS}, got {list(self.cameras)}")
+        if self.image_size <= 0:
+            raise ValueError(f"image_size must be positive, got {self.image_size}")
+
+
+class SimNode(Node):
+    def __init__(self) -> None:
+        super().__init__("inest_sim_node")
+        values = declare_dataclass(self, SimNodeConfig())
+        self.config = config = SimNodeConfig(**{**values, "cameras": tuple(values["cameras"])})
+        self.env = SweepToTopEnv(config=EnvConfig(max_steps=config.max_steps))
+        self.period_ns = round(1e9 / self.env.config.world.control_hz)
+        qos = QoSProfile(depth=10)
+        self.image_pubs = {
+            view: self.create_publisher(Image, f"camera/{view}/image_raw", qos) for view in config.cameras
+        }
+        self.state_pub = self.create_publisher(State, "state", qos)
+        self.status_pub = self.create_publisher(EpisodeStatus, "episode_status", qos)
+        self.clock_pub = self.create_publisher(Clock, "/clock", qos) if config.publish_clock else None
+        self.create_subscription(Action, "action", self.on_action, qos)
+        self.create_service(ResetEpisode, "reset", self.on_reset)
+        self.time_ns = 0  # simulated time of the current observation
+        self.previous_ns = -1  # ... and of the one before it
+        self.episode, self.seed, self.done = -1, config.seed, False
+        self.held_action = np.zeros(3)
+        self.env_reward = 0.0
+        self.last_outputs: list[tuple[object, object]] = []
+        self.start_episode(-1)
+        if config.mode == "realtime":
+            self.create_timer(self.period_ns / 1e9, self.on_tick)
+        self.get_logger().info(f"{config.mode} simulator, cameras {list(config.cameras)} at {config.image_size} px")
+
+    def start_episode(self, seed: int) -> np.ndarray:
+        self.episode += 1
+        self.seed = seed if seed >= 0 else self.config.seed + self.episode
+        state, _ = self.env.reset(seed=self.seed)
+        self.done, self.env_reward = False, 0.0
+        self.advance_clock()
+        self.publish_observation(state, action_stamp=0)
+        return state
+
+    def advance_clock(self) -> None:
+        self.previous_ns, self.time_ns = self.time_ns, self.time_ns + self.period_ns
+
+    def step(self, action: np.ndarray, action_stamp: int) -> None:
+        state, reward, terminated, truncated, _ = self.env.step(action)
+        self.env_reward = float(reward)
+        self.done = terminated or truncated
+        self.advance_clock()
+        self.publish_observation(state, action_stamp)
+
+    def publish_observation(self, state: np.ndarray, action_stamp: int) -> None:
+        stamp = ns_stamp(self.time_ns)
+        outputs: list[tuple[object, object]] = []
+        for view, publisher in self.image_pubs.items():
+            frame = self.env.render_camera(view, self.config.image_size)
+            image = Image(height=frame.shape[0], width=frame.shape[1], encoding="rgb8", step=frame.shape[1] * 3)
+            image.header.stamp, image.header.frame_id = stamp, f"{view}_camera"
+            image.data = frame.tobytes()
+            outputs.append((publisher, image))
+        state_msg = State(values=state.tolist())
+        state_msg.header.stamp, state_msg.header.frame_id = stamp, "world"
+        status = EpisodeStatus(
+            action_stamp=ns_stamp(action_stamp),
+            episode=self.episode,
+            step=self.env.elapsed_steps,
+            seed=self.seed,
+            blocks_in_order=self.env.progress,
+            score=self.env.progress / 3,
+            env_reward=self.env_reward,
+            terminated=False,
+            truncated=self.done,
+        )
+        status.header.stamp, status.header.frame_id = stamp, "world"
+        # state and status before the images: whoever waits on the reward has them already
+        outputs = [(self.state_pub, state_msg), (self.status_pub, status), *outputs]
+        if self.clock_pub is not None:
+            outputs.append((self.clock_pub, Clock(clock=stamp)))
+        self.last_outputs = outputs
+        for publisher, msg in outputs:
+            publisher.publish(msg)
+
+    def on_action(self, msg: Action) -> None:
+        try:
+            action = validate_action(np.asarray(msg.values, dtype=np.float64))
+        except ValueError as error:
+            self.get_logger().error(f"ignored a malformed action: {error}", throttle_duration_sec=1.0)
+            return
+        if self.config.mode == "realtime":
+            self.held_action = action
+            return
+        stamp = stamp_ns(msg.header.stamp)
+        if stamp == self.time_ns and not self.done:
+            self.step(action, stamp)
+        elif stamp == self.previous_ns:
+            for publisher, output in self.last_outputs:  # the agent missed this step's outputs
+                publisher.publish(output)
+        elif self.done:
+            self.get_logger().warning("the episode is over: call the reset service", throttle_duration_sec=1.0)
+        else:
+            self.get_logger().warning(
+                f"ignored an action for observation {stamp} ns; the current one is {self.time_ns} ns",
+                throttle_duration_sec=1.0,
+            )
+
+    def on_tick(self) -> None:
+        if self.done:
+            self.start_episode(-1)
+        else:
+            self.step(self.held_action, 0)
+
+    def on_reset(self, request: ResetEpisode.Request, response: ResetEpisode.Response) -> ResetEpisode.Response:
+        state = self.start_episode(request.seed)
+        response.success = True
+        response.message = f"episode {self.episode}, seed {self.seed}"
+        response.header.stamp, response.header.frame_id = ns_stamp(self.time_ns), "world"
+        response.state = state.tolist()
+        return response
+
+
+def main() -> int:
+    return run_node(SimNode)

@@ -1,0 +1,183 @@
+"""`inest-launch`: start the INEST graph (simulators, reward node, agent) without the ros2 CLI.
+
+For pip set-ups, which have no `ros2 launch`; ROS installs can use launch/inest.launch.py.
+All nodes read one params file (config/inest.params.yaml by default). Discovery stays on this
+machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless `--discovery subnet`, and uses the
+fast-discovery Fast DDS profile shipped next to the params file. The run folder gets each
+node's output in logs/, ROS's own logs in logs/ros/, the agent's run in agent/ and, at the end,
+reward_trace.png. Ctrl-C (or the agent finishing) stops every child: the agent first.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+from inest_agent_node.evaluate import EvalResult, format_table
+from inest_agent_node.train import RESULTS_FILE
+
+CONFIG_DIR_NAME = "config"
+PARAMS_FILE = "inest.params.yaml"
+FASTDDS_PROFILE = "fastdds_localhost.xml"
+NODES = ("sim", "reward", "agent")
+STOP_GRACE_S = 10.0
+
+
+def config_dir() -> Path:
+    """The installed share/inest_bringup/config, or the source tree's (pip editable install)."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        return Path(get_package_share_directory("inest_bringup")) / CONFIG_DIR_NAME
+    except (ImportError, LookupError, OSError):
+        return Path(__file__).resolve().parents[1] / CONFIG_DIR_NAME
+
+
+def executable(name: str) -> str:
+    """A console script next to this interpreter (the venv's bin/), else on PATH."""
+    beside = Path(sys.executable).parent / name
+    found = str(beside) if beside.exists() else shutil.which(name)
+    if found is None:
+        raise FileNotFoundError(f"{name} is not installed (run scripts/setup_env.sh)")
+    return found
+
+
+def graph_environment(args: argparse.Namespace, run_dir: Path) -> dict[str, str]:
+    env = dict(os.environ)
+    if args.discovery == "localhost":
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(config_dir() / FASTDDS_PROFILE))
+    env["ROS_LOG_DIR"] = str(run_dir / "logs" / "ros")
+    if args.domain_id is not None:
+        env["ROS_DOMAIN_ID"] = str(args.domain_id)
+    return env
+
+
+def node_commands(args: argparse.Namespace, run_dir: Path) -> list[tuple[str, list[str]]]:
+    """(log name, argv) of every node to start, in start order."""
+    namespaces = [f"sim{index}" for index in range(args.sims)]
+    listed = "[" + ", ".join(namespaces) + "]"
+    extra: dict[str, list[str]] = {node: [] for node in NODES}
+    for setting in args.param:
+        node, _, assignment = setting.partition(":")
+        if node not in NODES or ":=" not in assignment:
+            raise ValueError(f"--param {setting!r}: expected NODE:NAME:=VALUE with NODE one of {NODES}")
+        extra[node] += ["-p", assignment]
+    params = ["--ros-args", "--params-file", str(args.params)]
+    commands = []
+    for index, namespace in enumerate(namespaces):
+        clock = [] if index == 0 else ["-p", "publish_clock:=false"]
+        if args.realtime:
+            clock += ["-p", "mode:=realtime"]
+        commands.append(
+            (namespace, [executable("inest-sim-node"), *params, "-r", f"__ns:=/{namespace}", *clock, *extra["sim"]])
+        )
+    reward = ["-p", f"streams:={listed}"] + (["-p", f"model:={args.model}"] if args.model else [])
+    commands.append(("reward", [executable("inest-reward-node"), *params, *reward, *extra["reward"]]))
+    if not args.no_agent:
+        agent = ["-p", f"namespaces:={listed}", "-p", f"out:={run_dir / 'agent'}"]
+        if args.steps is not None:
+            agent += ["-p", f"total_steps:={args.steps}"]
+        if args.resume:
+            agent += ["-p", "resume:=true"]
+        commands.append(("agent", [executable("inest-agent-node"), *params, *agent, *extra["agent"]]))
+    return commands
+
+
+def print_results(path: Path) -> None:
+    if path.exists():
+        results = json.loads(path.read_text())
+        name = f"{results['config']['reward']} ({results['steps']} steps)"
+        print(format_table({name: EvalResult(**results["final_evaluation"])}))
+
+
+def stop(children: dict[str, subprocess.Popen]) -> None:
+    """SIGINT to each child (agent first, so the learner lets go before its peers vanish)."""
+    for name in sorted(children, key=lambda name: name != "agent"):
+        process = children[name]
+        if process.poll() is None:
+            process.send_signal(signal.SIGINT)
+            try:
+                process.wait(STOP_GRACE_S)
+            except subprocess.TimeoutExpired:
+                print(f"inest-launch: {name} ignored SIGINT for {STOP_GRACE_S:.0f} s, killing it", file=sys.stderr)
+                process.kill()
+                process.wait()
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", default="runs/graph", help="run folder (logs, agent run, reward trace)")
+    parser.add_argument("--params", type=Path, default=config_dir() / PARAMS_FILE, help="ROS params file")
+    parser.add_argument("--sims", type=int, default=1, help="simulator processes (namespaces sim0, sim1, ...)")
+    parser.add_argument("--model", help="reward model folder (overrides the params file)")
+    parser.add_argument("--steps", type=int, help="agent training steps (overrides the params file)")
+    parser.add_argument("--resume", action="store_true", help="continue the agent run in OUT/agent")
+    parser.add_argument("--no-agent", action="store_true", help="simulators and reward node only")
+    parser.add_argument("--realtime", action="store_true", help="simulators step at 8 Hz (implies watching)")
+    parser.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for every node (default: inherited)")
+    parser.add_argument("--discovery", choices=("localhost", "subnet"), default="localhost")
+    parser.add_argument("--param", action="append", default=[], metavar="NODE:NAME:=VALUE", help="sim|reward|agent")
+    parser.add_argument("--interval", type=float, default=2.0, help="seconds between progress lines")
+    args = parser.parse_args(argv)
+    if args.sims < 1:
+        parser.error("--sims must be at least 1")
+    if not args.params.is_file():
+        parser.error(f"no params file at {args.params}")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    run_dir = Path(args.out)
+    (run_dir / "logs").mkdir(parents=True, exist_ok=True)
+    try:
+        commands = node_commands(args, run_dir)
+    except (ValueError, FileNotFoundError) as error:
+        print(f"inest-launch: {error}", file=sys.stderr)
+        return 2
+    env = graph_environment(args, run_dir)
+    os.environ.update({key: env[key] for key in env if key.startswith(("ROS_", "FASTRTPS_"))})
+    import rclpy  # after the environment above: the monitor joins the same graph
+
+    from .monitor import GraphMonitor, watch
+
+    children: dict[str, subprocess.Popen] = {}
+    for name, command in commands:
+        log = open(run_dir / "logs" / f"{name}.log", "w")  # noqa: SIM115 (lives as long as the child)
+        children[name] = subprocess.Popen(
+            command, stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True
+        )
+        print(f"inest-launch: started {name} (pid {children[name].pid}), log {log.name}", flush=True)
+    rclpy.init()
+    monitor = GraphMonitor([f"sim{index}" for index in range(args.sims)])
+    status = 0
+    try:
+        lead = children.get("agent") or children["reward"]
+        watch(monitor, args.interval, until=lambda: any(p.poll() is not None for p in children.values()))
+        for name, process in children.items():
+            if process.poll() not in (None, 0):
+                print(f"inest-launch: {name} exited with status {process.returncode}; see its log", file=sys.stderr)
+                status = process.returncode
+        if lead.poll() == 0 and "agent" in children:
+            print_results(run_dir / "agent" / RESULTS_FILE)
+    except KeyboardInterrupt:
+        print("\ninest-launch: stopping", flush=True)
+    finally:
+        stop(children)
+        monitor.plot(run_dir / "reward_trace.png")
+        monitor.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    print(f"inest-launch: logs in {run_dir / 'logs'}, reward trace {run_dir / 'reward_trace.png'}")
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,143 @@
+"""`inest-monitor`: watch a running INEST graph's reward and subtask topics from a terminal.
+
+Prints one line per interval: steps/s from the simulators' episode status, the latest learned
+reward and subtask per stream, finished episodes and their mean score, and the reward node's
+health from /diagnostics. `--plot` writes a reward-trace PNG on exit (Ctrl-C).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from inest_interfaces.msg import EpisodeStatus, Reward
+from inest_sim_node.rosutil import namespaced
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+TRACE_STEPS = 500  # steps per stream kept for the reward-trace plot
+
+
+@dataclass
+class StreamView:
+    steps: int = 0
+    episodes: int = 0
+    scores: deque = field(default_factory=lambda: deque(maxlen=20))
+    reward: float = float("nan")
+    subtask: str = "-"
+    trace: deque = field(default_factory=lambda: deque(maxlen=TRACE_STEPS))  # (reward, subtask)
+
+
+class GraphMonitor(Node):
+    def __init__(self, namespaces: list[str]) -> None:
+        super().__init__("inest_monitor")
+        self.namespaces = namespaces
+        self.views = [StreamView() for _ in namespaces]
+        self.health = ""
+        for index, namespace in enumerate(namespaces):
+            self.create_subscription(
+                Reward, namespaced(namespace, "reward"), lambda m, i=index: self.on_reward(i, m), 100
+            )
+            self.create_subscription(
+                EpisodeStatus, namespaced(namespace, "episode_status"), lambda m, i=index: self.on_status(i, m), 100
+            )
+        self.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 10)
+        self.last_steps, self.last_time = 0, time.monotonic()
+
+    def on_reward(self, index: int, msg: Reward) -> None:
+        view = self.views[index]
+        view.reward, view.subtask = msg.total, f"{msg.subtask}/{msg.num_subtasks}"
+        view.trace.append((msg.total, msg.subtask))
+
+    def on_status(self, index: int, msg: EpisodeStatus) -> None:
+        view = self.views[index]
+        if msg.step > 0:
+            view.steps += 1
+        if msg.truncated or msg.terminated:
+            view.episodes += 1
+            view.scores.append(msg.score)
+
+    def on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name.startswith("inest_reward_node"):
+                values = {item.key: item.value for item in status.values}
+                self.health = (
+                    f"reward node {float(values['rate_hz']):.0f} Hz, p99 {float(values['latency_p99_ms']):.1f} ms, "
+                    f"rejected {values['rejected']}, dropped {values['dropped']}"
+                )
+
+    def line(self) -> str:
+        now = time.monotonic()
+        steps = sum(view.steps for view in self.views)
+        rate = (steps - self.last_steps) / max(now - self.last_time, 1e-9)
+        self.last_steps, self.last_time = steps, now
+        scores = [score for view in self.views for score in view.scores]
+        streams = "  ".join(
+            f"{namespace or '/'}: r {view.reward:+.3f} subtask {view.subtask}"
+            for namespace, view in zip(self.namespaces, self.views, strict=True)
+        )
+        mean_score = f"{sum(scores) / len(scores):.2f}" if scores else "-"
+        episodes = sum(view.episodes for view in self.views)
+        return f"steps {steps}  {rate:6.1f} steps/s  {streams}  episodes {episodes} (score {mean_score})  {self.health}"
+
+    def plot(self, path: str | Path) -> None:
+        """Reward and subtask over the last steps of each stream."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+        for namespace, view in zip(self.namespaces, self.views, strict=True):
+            if view.trace:
+                rewards, subtasks = zip(*view.trace, strict=True)
+                top.plot(rewards, label=namespace or "/")
+                bottom.step(range(len(subtasks)), subtasks, where="post", label=namespace or "/")
+        top.set(ylabel="learned reward", title=f"reward trace (last {TRACE_STEPS} frames per stream)")
+        bottom.set(xlabel="frame", ylabel="subtask")
+        top.legend(loc="upper left")
+        figure.tight_layout()
+        figure.savefig(path, dpi=100)
+        plt.close(figure)
+
+
+def watch(monitor: GraphMonitor, interval: float, until=lambda: False, duration: float | None = None) -> None:
+    """Spin the monitor, printing a line every `interval` s, until `until()` or `duration` is over."""
+    end = None if duration is None else time.monotonic() + duration
+    next_print = time.monotonic() + interval
+    live = sys.stdout.isatty()
+    while rclpy.ok() and not until() and (end is None or time.monotonic() < end):
+        rclpy.spin_once(monitor, timeout_sec=0.1)
+        if time.monotonic() >= next_print:
+            print(("\r" if live else "") + monitor.line(), end="" if live else "\n", flush=True)
+            next_print += interval
+    if live:
+        print()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--namespaces", nargs="+", default=["sim0"], help="simulator namespaces ('' for none)")
+    parser.add_argument("--interval", type=float, default=1.0, help="seconds between lines")
+    parser.add_argument("--duration", type=float, help="stop after this many seconds (default: Ctrl-C)")
+    parser.add_argument("--plot", help="write a reward-trace PNG here on exit")
+    args = parser.parse_args(argv)
+    rclpy.init()
+    monitor = GraphMonitor(args.namespaces)
+    try:
+        watch(monitor, args.interval, duration=args.duration)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if args.plot:
+            monitor.plot(args.plot)
+        monitor.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    return 0

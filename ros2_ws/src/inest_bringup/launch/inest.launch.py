@@ -1,0 +1,64 @@
+"""The INEST graph for ROS installs: `ros2 launch inest_bringup inest.launch.py sims:=2 model:=...`.
+
+The same nodes and params file as `inest-launch` (the pip set-up's launcher): simulators in
+namespaces sim0, sim1, ..., one reward node scoring all of them, one agent learning from all.
+`agent:=false` starts simulators and reward node only (e.g. with `mode:=realtime` to watch).
+"""
+
+from pathlib import Path
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, OpaqueFunction, SetEnvironmentVariable
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+SHARE = Path(get_package_share_directory("inest_bringup"))
+
+
+def graph(context):
+    def value(name: str) -> str:
+        return LaunchConfiguration(name).perform(context)
+
+    sims = int(value("sims"))
+    namespaces = [f"sim{index}" for index in range(sims)]
+    params = value("params_file")
+    nodes = [
+        Node(
+            package="inest_sim_node",
+            executable="inest-sim-node",
+            namespace=namespace,
+            parameters=[params, {"publish_clock": index == 0, "mode": value("mode")}],
+            output="screen",
+        )
+        for index, namespace in enumerate(namespaces)
+    ]
+    reward = {"streams": namespaces}
+    if value("model"):
+        reward["model"] = value("model")
+    nodes.append(
+        Node(package="inest_reward_node", executable="inest-reward-node", parameters=[params, reward], output="screen")
+    )
+    if value("agent").lower() == "true":
+        agent = {"namespaces": namespaces, "out": value("out")}
+        nodes.append(
+            Node(package="inest_agent_node", executable="inest-agent-node", parameters=[params, agent], output="screen")
+        )
+    return nodes
+
+
+def generate_launch_description() -> LaunchDescription:
+    return LaunchDescription(
+        [
+            DeclareLaunchArgument("params_file", default_value=str(SHARE / "config" / "inest.params.yaml")),
+            DeclareLaunchArgument("sims", default_value="1", description="simulator processes"),
+            DeclareLaunchArgument(
+                "model", default_value="", description="reward model folder (else the params file's)"
+            ),
+            DeclareLaunchArgument("out", default_value="runs/graph/agent", description="agent run folder"),
+            DeclareLaunchArgument("mode", default_value="lockstep", description="simulators: lockstep | realtime"),
+            DeclareLaunchArgument("agent", default_value="true", description="start the agent"),
+            SetEnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE", str(SHARE / "config" / "fastdds_localhost.xml")),
+            OpaqueFunction(function=graph),
+        ]
+    )

@@ -79,8 +79,13 @@ class RewardNode(Node):
         try:
             frame = decode_image(msg.encoding, msg.height, msg.width, msg.step, msg.data)
         except ImageRejected as error:
+            new_reason = str(error) != self.streams.stats.last_rejection
             self.streams.reject(str(error))
-            self.get_logger().warning(f"rejected a frame on stream {stream}: {error}", throttle_duration_sec=1.0)
+            message = f"rejected a frame on stream {stream}: {error}"
+            if new_reason:  # every new reason is logged; a flood of the same one once a second
+                self.get_logger().warning(message)
+            else:
+                self.get_logger().warning(message, throttle_duration_sec=1.0)
             return
         self.streams.submit(stream, stamp_ns(msg.header.stamp), frame, received, msg.header.frame_id)
 

@@ -109,16 +109,15 @@ class RewardScorer:
             self.trackers[index].reset()
             self.steps_since_switch[index] = -1
 
-    def score(
-        self, frames: np.ndarray, states: np.ndarray | None = None, envs: np.ndarray | None = None
-    ) -> RewardParts:
-        """frames: (N, H, W, 3) uint8. Without `envs`, one frame per environment in environment order;
-        with it, frame i belongs to environment envs[i] (a subset, repeats allowed and taken in order)."""
-        return self.score_embeddings(self.model.embed(frames), states, envs)
+    def score(self, frames: np.ndarray, states: np.ndarray | None = None) -> RewardParts:
+        """frames: (N, H, W, 3) uint8, one per environment, in environment order."""
+        return self.score_embeddings(self.model.embed(frames), states)
 
     def score_embeddings(
         self, embeddings: np.ndarray, states: np.ndarray | None = None, envs: np.ndarray | None = None
     ) -> RewardParts:
+        """Without `envs`, one embedding per environment in order; with it, row i belongs to
+        environment envs[i] (a subset of the environments, each at most once, or repeats in order)."""
         return self.advance(subtask_rewards(self.model, embeddings, self.goals), embeddings, states, envs)
 
     def advance(

@@ -99,10 +99,13 @@ class StreamScorer:
             self.stats.dropped += 1
 
     def flush(self) -> list[ScoredFrame]:
-        """Score everything pending: one forward pass, trackers advanced in each stream's stamp order."""
+        """Score everything pending in one forward pass. Trackers and novelty memories then advance
+        in rounds: round r holds each stream's r-th frame, so frames of different streams count as
+        simultaneous (like N environments stepped together) and a stream's own frames stay in order."""
         results: list[ScoredFrame] = []
-        streams, stamps, frames, received, frame_ids = [], [], [], [], []
+        waiting: list[tuple[int, int, int, np.ndarray, float, str]] = []  # (round, stream, stamp, frame, ...)
         for stream, queue in enumerate(self.pending):
+            position = 0
             while queue:
                 stamp, frame, arrived, frame_id = queue.popleft()
                 last = self.last[stream]
@@ -110,34 +113,36 @@ class StreamScorer:
                     results.append(dataclasses.replace(last, received=arrived, repeated=True))
                     self.stats.repeated += 1
                     continue
-                streams.append(stream)
-                stamps.append(stamp)
-                frames.append(frame)
-                received.append(arrived)
-                frame_ids.append(frame_id)
-        if frames:
-            parts = self.scorer.score(np.stack(frames), envs=np.array(streams))
+                waiting.append((position, stream, stamp, frame, arrived, frame_id))
+                position += 1
+        if not waiting:
+            return results
+        embeddings = self.scorer.model.embed(np.stack([item[3] for item in waiting]))
+        rounds = np.array([item[0] for item in waiting])
+        for current in range(rounds.max() + 1):
+            rows = np.flatnonzero(rounds == current)
+            streams = np.array([waiting[row][1] for row in rows])
+            parts = self.scorer.score_embeddings(embeddings[rows], envs=streams)
             now = time.perf_counter()
-            for row, (stream, stamp, arrived, frame_id) in enumerate(
-                zip(streams, stamps, received, frame_ids, strict=True)
-            ):
+            for index, row in enumerate(rows):
+                _, stream, stamp, _, arrived, frame_id = waiting[row]
                 scored = ScoredFrame(
                     stream,
                     stamp,
-                    float(parts.total[row]),
-                    float(parts.distance[row]),
-                    float(parts.bonus[row]),
-                    float(parts.intrinsic[row]),
-                    int(parts.subtask[row]),
-                    bool(parts.switched[row]),
+                    float(parts.total[index]),
+                    float(parts.distance[index]),
+                    float(parts.bonus[index]),
+                    float(parts.intrinsic[index]),
+                    int(parts.subtask[index]),
+                    bool(parts.switched[index]),
                     arrived,
                     frame_id,
                 )
                 self.last[stream] = scored
                 results.append(scored)
                 self.stats.latencies.append(now - arrived)
-            self.stats.scored += len(frames)
-            self.stats.batches += 1
+        self.stats.scored += len(waiting)
+        self.stats.batches += 1
         return results
 
     def reset(self, stream: int) -> None:

@@ -1,0 +1,121 @@
+"""A camera that is not the simulator: a plain rclpy script publishing recorded frames (bgr8).
+
+Publishes each frame of a .npy file (N, H, W, 3 RGB) on `camera/image_raw` and waits for the
+reward carrying its stamp before the next, so every frame is scored. Optionally first sends
+malformed images, and at the end calls `reset_reward` and sends the first frame once more.
+Writes what it received as JSON. Used by tests/test_graph.py.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from inest_interfaces.msg import Reward
+from sensor_msgs.msg import Image
+from std_srvs.srv import Trigger
+
+PERIOD_NS = 125_000_000
+
+
+def image(frame: np.ndarray, stamp_ns: int) -> Image:
+    bgr = np.ascontiguousarray(frame[..., ::-1])
+    msg = Image(height=frame.shape[0], width=frame.shape[1], encoding="bgr8", step=frame.shape[1] * 3)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+    msg.header.frame_id = "foreign_camera"
+    msg.data = bgr.tobytes()
+    return msg
+
+
+def malformed(frame: np.ndarray) -> list[Image]:
+    wrong_encoding = image(frame, 1)
+    wrong_encoding.encoding = "mono16"
+    short_step = image(frame, 2)
+    short_step.step = frame.shape[1] * 3 - 1
+    empty = image(frame, 3)
+    empty.data = b""
+    return [wrong_encoding, short_step, empty]
+
+
+def spin_until(node, condition, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        rclpy.spin_once(node, timeout_sec=0.05)
+        if time.monotonic() > deadline:
+            sys.exit(f"foreign_camera: timed out waiting for {what}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("frames")
+    parser.add_argument("out")
+    parser.add_argument("--malformed", action="store_true")
+    parser.add_argument("--reset", action="store_true")
+    args = parser.parse_args()
+    frames = np.load(args.frames)
+    rclpy.init()
+    node = rclpy.create_node("foreign_camera")
+    publisher = node.create_publisher(Image, "camera/image_raw", 10)
+    rewards: dict[int, Reward] = {}
+    rejected, reasons = [0], []
+
+    def on_diagnostics(msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            values = {item.key: item.value for item in status.values}
+            rejected[0] += int(values.get("rejected", 0))
+            if values.get("last_rejection"):
+                reasons.append(values["last_rejection"])
+
+    node.create_subscription(
+        Reward, "reward", lambda m: rewards.__setitem__(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m), 10
+    )
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+    reset = node.create_client(Trigger, "reset_reward")
+    spin_until(node, lambda: publisher.get_subscription_count() > 0, 60, "the reward node's subscription")
+    if args.malformed:
+        for msg in malformed(frames[0]):
+            publisher.publish(msg)
+    received = []
+
+    def send(frame: np.ndarray, stamp: int) -> None:
+        publisher.publish(image(frame, stamp))
+        spin_until(node, lambda: stamp in rewards, 30, f"the reward for stamp {stamp}")
+        msg = rewards[stamp]
+        received.append(
+            {
+                "stamp": stamp,
+                "frame_id": msg.header.frame_id,
+                "total": msg.total,
+                "distance": msg.distance_reward,
+                "bonus": msg.subtask_bonus,
+                "intrinsic": msg.intrinsic_bonus,
+                "subtask": msg.subtask,
+                "num_subtasks": msg.num_subtasks,
+            }
+        )
+
+    for index, frame in enumerate(frames):
+        send(frame, (index + 1) * PERIOD_NS)
+    after_reset = None
+    if args.reset:
+        spin_until(node, reset.service_is_ready, 30, "the reset_reward service")
+        future = reset.call_async(Trigger.Request())
+        spin_until(node, future.done, 30, "the reset_reward answer")
+        send(frames[0], (len(frames) + 1) * PERIOD_NS)
+        after_reset = received.pop()
+    spin_until(node, lambda: rejected[0] >= 3 or not args.malformed, 10, "diagnostics counting the rejections")
+    with open(args.out, "w") as handle:
+        json.dump(
+            {"rewards": received, "after_reset": after_reset, "rejected": rejected[0], "reasons": reasons}, handle
+        )
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,62 @@
+"""Helpers for the integration tests: real node processes on a private ROS domain, on loopback."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from inest_bringup.launcher import FASTDDS_PROFILE, config_dir
+
+BIN = Path(sys.executable).parent
+_domains = itertools.count()
+
+
+def fresh_domain() -> int:
+    """A ROS_DOMAIN_ID no other test of this run uses, and unlikely to meet a parallel run's."""
+    return 1 + (os.getpid() * 13 + next(_domains)) % 200
+
+
+def graph_env(domain: int, log_dir: Path) -> dict[str, str]:
+    return {
+        **os.environ,
+        "ROS_DOMAIN_ID": str(domain),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "FASTRTPS_DEFAULT_PROFILES_FILE": str(config_dir() / FASTDDS_PROFILE),
+        "ROS_LOG_DIR": str(log_dir / "ros"),
+        "PYTHONUNBUFFERED": "1",
+    }
+
+
+class Processes:
+    """Started node processes, each logging to its own file; all stopped at the end of the test."""
+
+    def __init__(self, domain: int, log_dir: Path) -> None:
+        self.env, self.log_dir = graph_env(domain, log_dir), log_dir
+        self.running: dict[str, subprocess.Popen] = {}
+
+    def start(self, name: str, *argv: str) -> subprocess.Popen:
+        log = open(self.log_dir / f"{name}.log", "w")  # noqa: SIM115 (closed with the process)
+        command = [str(BIN / argv[0]) if (BIN / argv[0]).exists() else argv[0], *argv[1:]]
+        process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=self.env, cwd=self.log_dir)
+        self.running[name] = process
+        return process
+
+    def log(self, name: str) -> str:
+        return (self.log_dir / f"{name}.log").read_text()
+
+    def stop_all(self) -> None:
+        for process in self.running.values():
+            if process.poll() is None:
+                process.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + 10
+        for process in self.running.values():
+            try:
+                process.wait(max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()

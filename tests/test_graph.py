@@ -1,0 +1,150 @@
+"""The ROS 2 node graph with real processes on a private domain: training over topics, a foreign
+camera, malformed images, a reward node restarted mid-training, the reset service, the launcher."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+from inest_interfaces.msg import EpisodeStatus
+from inest_reward_node.data import load_demos
+from inest_reward_node.intrinsic import IntrinsicConfig
+from inest_reward_node.model import load_model
+from inest_reward_node.rewards import RewardScorer, replay
+from rosgraph import BIN, Processes, fresh_domain
+
+pytestmark = pytest.mark.timeout(300)
+FOREIGN_CAMERA = Path(__file__).parent / "foreign_camera.py"
+TINY_AGENT = [  # a few hundred steps, updates from step 100, no periodic evaluation
+    "-p", "sac.learning_starts:=100", "-p", "eval_every:=1000000", "-p", "final_eval_episodes:=2",
+    "-p", "checkpoint_every:=100", "-p", "sac.buffer_size:=10000",
+]  # fmt: skip
+
+
+@pytest.fixture
+def tiny_model(tiny_tcc_run):
+    return tiny_tcc_run[1] / "model"
+
+
+@pytest.fixture
+def graph(tmp_path):
+    processes = Processes(fresh_domain(), tmp_path)
+    yield processes
+    processes.stop_all()
+
+
+def reward_node_args(model, *extra: str) -> list[str]:
+    return ["inest-reward-node", "--ros-args", "-p", f"model:={model}", "-p", "diagnostics_period:=0.2", *extra]
+
+
+def sim_node_args(namespace: str, *extra: str) -> list[str]:
+    return ["inest-sim-node", "--ros-args", "-r", f"__ns:=/{namespace}", "-p", "image_size:=48", *extra]
+
+
+def demo_that_completes_subtasks(tiny_demos, model):
+    """A training demonstration on which the in-process tracker completes at least one subtask."""
+    for demo in load_demos(tiny_demos, "train", "ego", model.image_size, progress_bar=False):
+        if replay(model, model.embed(demo.frames), 3).completion_frames:
+            return demo
+    raise AssertionError("the tiny model completes no subtask on any training demonstration")
+
+
+def test_a_foreign_camera_gets_rewards_that_match_the_library_frame_by_frame(graph, tiny_model, tiny_demos, tmp_path):
+    model = load_model(tiny_model)
+    demo = demo_that_completes_subtasks(tiny_demos, model)
+    np.save(tmp_path / "frames.npy", demo.frames)
+    graph.start("reward", *reward_node_args(tiny_model, "-p", "image_topic:=camera/image_raw"))
+    camera = subprocess.run(
+        [sys.executable, FOREIGN_CAMERA, tmp_path / "frames.npy", tmp_path / "out.json", "--malformed", "--reset"],
+        env=graph.env, capture_output=True, text=True, timeout=240,
+    )  # fmt: skip
+    assert camera.returncode == 0, camera.stdout + camera.stderr + graph.log("reward")
+    received = json.loads((tmp_path / "out.json").read_text())
+    rewards = received["rewards"]
+    assert len(rewards) == len(demo.frames)
+    assert all(r["frame_id"] == "foreign_camera" and r["num_subtasks"] == 3 for r in rewards)
+    # the same frames through the library, one at a time: same rewards and parts
+    library = RewardScorer(model, 3, intrinsic=IntrinsicConfig(mode="embedding"))
+    expected = [library.score(frame[None]) for frame in demo.frames]
+    np.testing.assert_allclose([r["total"] for r in rewards], [e.total[0] for e in expected], rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose([r["intrinsic"] for r in rewards], [e.intrinsic[0] for e in expected], atol=1e-5)
+    subtasks = [r["subtask"] for r in rewards]
+    assert subtasks == [int(e.subtask[0]) for e in expected]
+    assert subtasks[-1] >= 1 and all(b - a in (0, 1) for a, b in itertools.pairwise(subtasks))
+    # the reset service restarted the tracker
+    assert received["after_reset"]["subtask"] == 0 and received["after_reset"]["bonus"] == 0.0
+    # three malformed images: rejected, counted, the reason logged, and the node kept serving
+    assert received["rejected"] == 3
+    log = graph.log("reward")
+    for reason in ("unsupported encoding 'mono16'", "step 143 is shorter", "no pixel data"):
+        assert reason in log
+
+
+def test_lockstep_training_over_the_graph_with_two_simulators(graph, tiny_model, tmp_path):
+    for index in range(2):
+        graph.start(f"sim{index}", *sim_node_args(f"sim{index}", "-p", f"publish_clock:={index == 0}".lower()))
+    graph.start("reward", *reward_node_args(tiny_model, "-p", "streams:=[sim0, sim1]"))
+    agent = graph.start(
+        "agent", "inest-agent-node", "--ros-args", "-p", "namespaces:=[sim0, sim1]", "-p", f"out:={tmp_path / 'run'}",
+        "-p", "total_steps:=300", *TINY_AGENT,
+    )  # fmt: skip
+    assert agent.wait(240) == 0, graph.log("agent")
+    results = json.loads((tmp_path / "run" / "results.json").read_text())
+    assert results["steps"] == 300 and results["config"]["num_envs"] == 2
+    assert results["config"]["reward"] == "topic"
+    assert (tmp_path / "run" / "checkpoint" / "model.zip").exists()
+
+
+def count_steps(domain_env, until_steps: int, timeout: float) -> int:
+    """Watch sim0's episode status from this process until `until_steps` steps were taken."""
+    rclpy.init(domain_id=int(domain_env["ROS_DOMAIN_ID"]))
+    try:
+        node = rclpy.create_node("step_counter")
+        steps = [0]
+        node.create_subscription(EpisodeStatus, "sim0/episode_status", lambda m: steps.__setitem__(0, steps[0] + 1), 50)
+        deadline = time.monotonic() + timeout
+        while steps[0] < until_steps and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        return steps[0]
+    finally:
+        rclpy.shutdown()
+
+
+def test_the_agent_waits_for_a_restarted_reward_node_and_finishes(graph, tiny_model, tmp_path):
+    graph.start("sim0", *sim_node_args("sim0"))
+    reward = graph.start("reward", *reward_node_args(tiny_model, "-p", "streams:=[sim0]"))
+    agent = graph.start(
+        "agent", "inest-agent-node", "--ros-args", "-p", "namespaces:=[sim0]", "-p", f"out:={tmp_path / 'run'}",
+        "-p", "total_steps:=300", "-p", "step_timeout:=1.0", *TINY_AGENT,
+    )  # fmt: skip
+    assert count_steps(graph.env, 100, timeout=120) >= 100
+    reward.kill()
+    reward.wait()
+    time.sleep(2.0)  # the agent is stuck on a step now
+    assert agent.poll() is None
+    graph.start("reward-restarted", *reward_node_args(tiny_model, "-p", "streams:=[sim0]"))
+    assert agent.wait(240) == 0, graph.log("agent")
+    assert json.loads((tmp_path / "run" / "results.json").read_text())["steps"] == 300
+    assert "sim0: reward" in graph.log("agent")  # it said which topic was silent
+
+
+def test_the_launcher_runs_the_whole_graph_and_writes_the_reward_trace(tiny_model, tmp_path):
+    launched = subprocess.run(
+        [BIN / "inest-launch", "--out", tmp_path / "graph", "--model", tiny_model, "--steps", "200",
+         "--domain-id", str(fresh_domain()), "--interval", "1", "--param", "sim:image_size:=48",
+         *[arg for value in TINY_AGENT[1::2] for arg in ("--param", f"agent:{value}")]],
+        capture_output=True, text=True, timeout=240,
+    )  # fmt: skip
+    assert launched.returncode == 0, launched.stdout + launched.stderr
+    assert "steps/s" in launched.stdout and "subtask" in launched.stdout
+    assert "mean score" in launched.stdout  # the final evaluation table
+    assert (tmp_path / "graph" / "reward_trace.png").stat().st_size > 1000
+    for name in ("sim0", "reward", "agent"):
+        assert (tmp_path / "graph" / "logs" / f"{name}.log").exists()

@@ -28,15 +28,20 @@ def interleaved_speeds(configs: dict[str, TrainConfig]) -> dict[str, float]:
     """Median steps/s per config over alternating rounds of training after the warm-up."""
     with tempfile.TemporaryDirectory() as root:
         trainers = {name: Trainer(config, f"{root}/{name}", progress_bar=False) for name, config in configs.items()}
-        for trainer in trainers.values():
-            trainer.model.learn(WARM_UP_STEPS + 4)
-        speeds: dict[str, list[float]] = {name: [] for name in trainers}
-        for _ in range(ROUNDS):
-            for name, trainer in trainers.items():
-                start = time.perf_counter()
-                trainer.model.learn(ROUND_STEPS, reset_num_timesteps=False)
-                speeds[name].append(ROUND_STEPS / (time.perf_counter() - start))
-        return {name: float(np.median(values)) for name, values in speeds.items()}
+        return trainer_speeds(trainers)
+
+
+def trainer_speeds(trainers: dict[str, Trainer]) -> dict[str, float]:
+    """Warm every trainer up, then alternate rounds between them; median steps/s of each."""
+    for trainer in trainers.values():
+        trainer.model.learn(WARM_UP_STEPS + 4)
+    speeds: dict[str, list[float]] = {name: [] for name in trainers}
+    for _ in range(ROUNDS):
+        for name, trainer in trainers.items():
+            start = time.perf_counter()
+            trainer.model.learn(ROUND_STEPS, reset_num_timesteps=False)
+            speeds[name].append(ROUND_STEPS / (time.perf_counter() - start))
+    return {name: float(np.median(values)) for name, values in speeds.items()}
 
 
 def main() -> None:

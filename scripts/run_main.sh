@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# The main job, from a fresh clone: set up .venv, collect a small demonstration dataset, write a
-# GIF of one expert episode, pretrain a small TCC reward model on it and write its reward-quality
-# report. Every step is cached: re-running reuses (or resumes) what is already in runs/.
+# The main job, from a fresh clone: set up .venv (which also builds the ROS interfaces), collect
+# a small demonstration dataset, write a GIF of one expert episode, pretrain a small TCC reward
+# model and write its reward-quality report (all cached in runs/), then launch the ROS 2 graph
+# (2 simulators + reward node + SAC agent) for a bounded number of training steps with live
+# progress, and write the reward trace (runs/graph-main/reward_trace.png).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$ROOT/scripts/setup_env.sh"
@@ -16,3 +18,8 @@ if [ ! -f runs/pretrain-main/model/model.json ]; then
     --iterations "${INEST_PRETRAIN_ITERATIONS:-300}" "${RESUME[@]}"
 fi
 "$BIN/inest-reward-quality" runs/pretrain-main/model runs/demos-main --out runs/quality-main
+# A fresh agent run each time (runs/graph-main is replaced); updates start after 1,000 steps.
+rm -rf runs/graph-main
+"$BIN/inest-launch" --out runs/graph-main --model runs/pretrain-main/model --sims 2 \
+  --steps "${INEST_GRAPH_STEPS:-4000}" --param agent:sac.learning_starts:=1000 \
+  --param agent:final_eval_episodes:=50

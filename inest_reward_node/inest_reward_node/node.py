@@ -14,6 +14,7 @@ import time
 from dataclasses import dataclass
 
 import rclpy
+import torch
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from inest_interfaces.msg import Reward
 from inest_sim_node.rosutil import declare_dataclass, namespaced, ns_stamp, run_node, stamp_ns
@@ -41,6 +42,7 @@ class RewardNodeConfig:
     max_batch: int = 32  # frames per forward pass at most
     max_pending: int = 4  # per stream; older unscored frames are dropped (and counted)
     diagnostics_period: float = 1.0  # seconds
+    threads: int = 1  # torch threads: one keeps batch-1 latency steady when the simulator and agent share the cores
 
 
 class RewardNode(Node):
@@ -52,14 +54,18 @@ class RewardNode(Node):
         if intrinsic.mode == "state":
             raise ValueError("intrinsic.mode 'state' needs state vectors; the reward node only sees images")
         self.config = config
+        torch.set_num_threads(config.threads)
         model = load_model(config.model, scheme=config.subtasks)
         scorer = RewardScorer(model, config.subtasks, config.variant or None, intrinsic, len(config.streams))
         self.streams = StreamScorer(scorer, config.max_pending)
         qos = QoSProfile(depth=10)
         self.reward_pubs, self.total_pubs, self.subtask_pubs = [], [], []
         for index, namespace in enumerate(config.streams):
-            self.create_subscription(
-                Image, namespaced(namespace, config.image_topic), lambda msg, i=index: self.on_image(i, msg), qos
+            self.create_subscription(  # DDS keeps only the newest max_pending frames: a flood costs no decoding
+                Image,
+                namespaced(namespace, config.image_topic),
+                lambda msg, i=index: self.on_image(i, msg),
+                QoSProfile(depth=config.max_pending),
             )
             self.reward_pubs.append(self.create_publisher(Reward, namespaced(namespace, "reward"), qos))
             self.total_pubs.append(self.create_publisher(Float32, namespaced(namespace, "reward/total"), qos))

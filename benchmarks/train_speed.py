@@ -34,10 +34,12 @@ def interleaved_speeds(configs: dict[str, TrainConfig]) -> dict[str, float]:
 def trainer_speeds(trainers: dict[str, Trainer]) -> dict[str, float]:
     """Warm every trainer up, then alternate rounds between them; median steps/s of each."""
     for trainer in trainers.values():
+        torch.set_num_threads(trainer.config.threads)  # process-wide: each trainer gets its own setting
         trainer.model.learn(WARM_UP_STEPS + 4)
     speeds: dict[str, list[float]] = {name: [] for name in trainers}
     for _ in range(ROUNDS):
         for name, trainer in trainers.items():
+            torch.set_num_threads(trainer.config.threads)
             start = time.perf_counter()
             trainer.model.learn(ROUND_STEPS, reset_num_timesteps=False)
             speeds[name].append(ROUND_STEPS / (time.perf_counter() - start))

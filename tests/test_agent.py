@@ -14,6 +14,7 @@ from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.model import load_model
 from inest_reward_node.rewards import RewardScorer
 from inest_sim_node.expert import ScriptedExpert
+from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from inest_agent_node.config import SacConfig, TrainConfig
 from inest_sim_node import EnvConfig
@@ -139,3 +140,38 @@ def test_command_line_flags_override_the_config_file(tmp_path):
     path.write_text("num_envs: 2\n")  # a partial file: the model comes from the command line
     config, _ = parse_args(["--out", "x", "--config", str(path), "--reward", "xirl", "--model", "m"])
     assert (config.reward, config.model, config.num_envs, config.intrinsic.mode) == ("xirl", "m", 2, "none")
+
+
+class UpdatesWhileStepping(VecEnvWrapper):
+    """Stands in for the graph: runs `while_waiting` once the actions are out, recording what the
+    replay buffer held at that moment."""
+
+    def __init__(self, venv) -> None:
+        super().__init__(venv)
+        self.while_waiting = None
+        self.buffer_sizes: list[int] = []
+        self.model = None
+
+    def reset(self):
+        return self.venv.reset()
+
+    def step_wait(self):
+        if self.model.__dict__.get("pending_updates"):
+            self.buffer_sizes.append(self.model.replay_buffer.size())
+        if self.while_waiting is not None:
+            self.while_waiting()
+        return self.venv.step_wait()
+
+
+def test_overlapped_updates_run_as_many_updates_on_the_same_transitions(tmp_path):
+    config = tiny_config(300)
+    plain = Trainer(config, tmp_path / "plain", progress_bar=False)
+    env = UpdatesWhileStepping(make_vec_env(config.num_envs, EnvConfig(), config.seed))
+    overlapped = Trainer(config, tmp_path / "overlapped", progress_bar=False, env=env, overlap_updates=True)
+    env.model = overlapped.model
+    plain.train()
+    overlapped.train()
+    assert overlapped.model._n_updates == plain.model._n_updates > 0
+    # an update deferred into the next step still samples only the transitions stored before it
+    first_update = config.sac.learning_starts // config.num_envs
+    assert env.buffer_sizes[0] == first_update + 1

@@ -100,6 +100,14 @@ def test_lockstep_training_over_the_graph_with_two_simulators(graph, tiny_model,
     assert results["steps"] == 300 and results["config"]["num_envs"] == 2
     assert results["config"]["reward"] == "topic"
     assert (tmp_path / "run" / "checkpoint" / "model.zip").exists()
+    # evaluate mode: the saved policy over the same graph, on the evaluation layouts
+    evaluation = graph.start(
+        "evaluate", "inest-agent-node", "--ros-args", "-p", "namespaces:=[sim0, sim1]", "-p", "mode:=evaluate",
+        "-p", f"out:={tmp_path / 'run'}", "-p", "episodes:=3",
+    )  # fmt: skip
+    assert evaluation.wait(120) == 0, graph.log("evaluate")
+    table = graph.log("evaluate")
+    assert "model.zip over the graph" in table and " 3 " in table.splitlines()[-1]
 
 
 def count_steps(domain_env, until_steps: int, timeout: float) -> int:

@@ -11,6 +11,7 @@ keeps waiting: a restarted reward node or simulator picks the run up where it st
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -50,6 +51,7 @@ class GraphVecEnv(VecEnv):
                     Reward, namespaced(namespace, "reward"), lambda m, i=index: self.on_reward(i, m), qos
                 )
                 self.reward_resets.append(node.create_client(Trigger, namespaced(namespace, "reset_reward")))
+        self.while_waiting: Callable[[], None] | None = None  # work to do once the actions are out
         self.stamps = np.zeros(self.num_envs, dtype=np.int64)  # each environment's current observation
         self.actions = np.zeros((self.num_envs, 3), dtype=np.float32)
 
@@ -132,6 +134,8 @@ class GraphVecEnv(VecEnv):
                 if index not in results:
                     self.publish_action(index)
 
+        if self.while_waiting is not None:
+            self.while_waiting()
         self.wait_until(collect, silent, resend)
         observations = np.zeros((self.num_envs, *self.observation_space.shape), dtype=np.float32)
         rewards = np.zeros(self.num_envs, dtype=np.float32)

@@ -7,6 +7,8 @@ Parameters: every training setting of config.py (`reward`, `total_steps`, `sac.b
 - `namespaces`: one simulator (and reward stream) per namespace, e.g. ["sim0", "sim1"]
 - `resume`: continue the run in `out` from its last checkpoint
 - `step_timeout`: seconds of silence before a topic is reported (the node keeps waiting)
+- `overlap_updates`: run each SAC update while the simulators take the next step (default on;
+  the action then comes from a policy one update older, see train.OverlappedSAC)
 - `episodes`, `policy`: evaluate mode, N episodes of a saved policy (default: `out`'s checkpoint)
 Periodic evaluations during training run on an in-process copy of the simulator.
 """
@@ -39,6 +41,7 @@ class AgentNodeConfig:
     step_timeout: float = 5.0
     episodes: int = 150
     policy: str = ""  # evaluate: a saved SAC model.zip; empty: `out`/checkpoint/model.zip
+    overlap_updates: bool = True  # update while the simulators step (train.OverlappedSAC)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -68,7 +71,8 @@ class AgentNode(Node):
         super().__init__("inest_agent_node")
         values = declare_dataclass(self, AgentNodeConfig())
         self.settings = AgentNodeConfig(**{**values, "namespaces": tuple(values["namespaces"])})
-        defaults = TrainConfig(reward="topic", intrinsic=IntrinsicConfig(mode="none"))
+        # one torch thread: with updates overlapping the step, the other core serves simulators and reward node
+        defaults = TrainConfig(reward="topic", intrinsic=IntrinsicConfig(mode="none"), threads=1)
         self.train_config = TrainConfig.from_dict(
             {**declare_dataclass(self, defaults), "num_envs": len(self.settings.namespaces)}
         )
@@ -83,7 +87,7 @@ class AgentNode(Node):
                 result = evaluate_over_graph(env, model, settings.episodes, config.seed)
                 print(format_table({f"{Path(policy).name} over the graph": result}), flush=True)
                 return
-            trainer = Trainer(config, settings.out, resume=settings.resume, env=env)
+            trainer = Trainer(config, settings.out, settings.resume, env=env, overlap_updates=settings.overlap_updates)
             result = trainer.train()
             print(format_table({f"{config.reward} ({trainer.model.num_timesteps} steps)": result}), flush=True)
             self.get_logger().info(f"wrote {Path(settings.out) / RESULTS_FILE}")

@@ -54,6 +54,25 @@ def build_env(config: TrainConfig) -> VecEnv:
     return LearnedRewardVecEnv(make_vec_env(config.num_envs, env_config, config.seed, frames), scorer)
 
 
+class OverlappedSAC(SAC):
+    """SAC whose gradient steps run while the environments take their next step.
+
+    stable-baselines3 stores transition t, updates, then picks the action for t + 1. Here the
+    action for t + 1 is picked first (by a policy one update older), sent, and the update runs
+    while the simulators and the reward node work in their own processes; it still samples
+    from exactly the transitions up to t. The vector env calls `run_pending_updates` once
+    its actions are out (GraphVecEnv.while_waiting).
+    """
+
+    def train(self, gradient_steps: int, batch_size: int = 64) -> None:
+        self.__dict__.setdefault("pending_updates", []).append((gradient_steps, batch_size))
+
+    def run_pending_updates(self) -> None:
+        pending = self.__dict__.setdefault("pending_updates", [])
+        while pending:
+            SAC.train(self, *pending.pop(0))
+
+
 def policy_of(model: SAC):
     def act(observation: np.ndarray, _env) -> np.ndarray:
         return model.predict(observation, deterministic=True)[0]
@@ -103,7 +122,8 @@ class TrainingCallback(BaseCallback):
 
 
 class Trainer:
-    """SAC on in-process environments built from the config, or on `env` (the ROS graph's)."""
+    """SAC on in-process environments built from the config, or on `env` (the ROS graph's).
+    `overlap_updates`: run each update while `env` steps (OverlappedSAC; env.while_waiting)."""
 
     def __init__(
         self,
@@ -112,6 +132,7 @@ class Trainer:
         resume: bool = False,
         progress_bar: bool = True,
         env: VecEnv | None = None,
+        overlap_updates: bool = False,
     ):
         self.config = config
         self.run_dir = Path(run_dir)
@@ -121,8 +142,9 @@ class Trainer:
         torch.set_num_threads(config.threads)
         self.env = env if env is not None else build_env(config)
         checkpoint = self.run_dir / CHECKPOINT_DIR
+        algorithm = OverlappedSAC if overlap_updates else SAC
         if resume and (checkpoint / "model.zip").exists():
-            self.model = SAC.load(
+            self.model = algorithm.load(
                 checkpoint / "model.zip", env=self.env, tensorboard_log=str(self.run_dir / "tensorboard")
             )
             self.model.load_replay_buffer(checkpoint / "replay_buffer.pkl")
@@ -133,7 +155,7 @@ class Trainer:
         else:
             settings = dataclasses.asdict(config.sac)
             net_arch = list(settings.pop("net_arch"))
-            self.model = SAC(
+            self.model = algorithm(
                 "MlpPolicy",
                 self.env,
                 **settings,
@@ -142,6 +164,8 @@ class Trainer:
                 seed=config.seed,
                 verbose=0,
             )
+        if overlap_updates:
+            self.env.while_waiting = self.model.run_pending_updates
 
     def check_run_dir(self, resume: bool) -> None:
         settings = self.config.to_dict()
@@ -167,6 +191,8 @@ class Trainer:
         remaining = self.config.total_steps - self.model.num_timesteps
         if remaining > 0:
             self.model.learn(remaining, callback=TrainingCallback(self), reset_num_timesteps=False, tb_log_name="sac")
+            if isinstance(self.model, OverlappedSAC):
+                self.model.run_pending_updates()  # the last update had no next step to overlap with
             self.save_checkpoint()
         return self.finish()
 

@@ -24,7 +24,7 @@ import rclpy
 import torch
 from inest_agent_node.graph_env import GraphVecEnv
 from inest_agent_node.train import Trainer
-from inest_bringup.launcher import FASTDDS_PROFILE, config_dir
+from inest_bringup.launcher import graph_environment
 from inest_reward_node.intrinsic import IntrinsicConfig
 from train_speed import ROUND_STEPS, ROUNDS, WARM_UP_STEPS, trainer_speeds
 
@@ -43,20 +43,14 @@ def main() -> None:
     model = str(Path(arguments[0] if arguments else "runs/pretrain-main/model").resolve())
     torch.set_num_threads(TrainConfig.threads)
     domain = 100 + os.getpid() % 50
-    env = {
-        **os.environ,
-        "ROS_DOMAIN_ID": str(domain),
-        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-        "FASTRTPS_DEFAULT_PROFILES_FILE": str(config_dir() / FASTDDS_PROFILE),
-    }
-    os.environ.update(env)
     namespaces = [f"sim{index}" for index in range(SIMS)]
     bin_dir = Path(sys.executable).parent
     common = {"num_envs": SIMS, "total_steps": WARM_UP_STEPS + ROUNDS * ROUND_STEPS, "eval_every": 10**9}
     sac = SacConfig(learning_starts=WARM_UP_STEPS)
     Path(LOGS).mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as root:
-        env["ROS_LOG_DIR"] = root
+        env = graph_environment(domain, root)
+        os.environ.update(env)  # this process's own participant joins the same private graph
         processes = [
             subprocess.Popen(
                 [bin_dir / "inest-sim-node", "--ros-args", "-r", f"__ns:=/{namespace}", "-p", "cameras:=[ego]"],

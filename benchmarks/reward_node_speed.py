@@ -23,7 +23,7 @@ import numpy as np
 import rclpy
 import torch
 from diagnostic_msgs.msg import DiagnosticArray
-from inest_bringup.launcher import FASTDDS_PROFILE, config_dir
+from inest_bringup.launcher import graph_environment
 from inest_interfaces.msg import Reward
 from inest_reward_node.model import load_model
 from sensor_msgs.msg import Image
@@ -102,15 +102,9 @@ def main() -> None:
     torch.set_num_threads(2)
     frames = simulator_frames(200)
     domain = 150 + os.getpid() % 50
-    env = {
-        **os.environ,
-        "ROS_DOMAIN_ID": str(domain),
-        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-        "FASTRTPS_DEFAULT_PROFILES_FILE": str(config_dir() / FASTDDS_PROFILE),
-    }
-    os.environ.update(env)
     with tempfile.TemporaryDirectory() as logs:
-        env["ROS_LOG_DIR"] = logs
+        env = graph_environment(domain, logs)
+        os.environ.update(env)  # this process's own participant joins the same private graph
         node_process = subprocess.Popen(
             [str(Path(sys.executable).parent / "inest-reward-node"), "--ros-args",
              "-p", f"model:={Path(model).resolve()}", "-p", "image_topic:=camera/image_raw", *sys.argv[2:]],

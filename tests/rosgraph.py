@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from inest_bringup.launcher import FASTDDS_PROFILE, config_dir
+from inest_bringup.launcher import graph_environment
 
 BIN = Path(sys.executable).parent
 _domains = itertools.count()
@@ -21,22 +21,12 @@ def fresh_domain() -> int:
     return 1 + (os.getpid() * 13 + next(_domains)) % 200
 
 
-def graph_env(domain: int, log_dir: Path) -> dict[str, str]:
-    return {
-        **os.environ,
-        "ROS_DOMAIN_ID": str(domain),
-        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-        "FASTRTPS_DEFAULT_PROFILES_FILE": str(config_dir() / FASTDDS_PROFILE),
-        "ROS_LOG_DIR": str(log_dir / "ros"),
-        "PYTHONUNBUFFERED": "1",
-    }
-
-
 class Processes:
     """Started node processes, each logging to its own file; all stopped at the end of the test."""
 
     def __init__(self, domain: int, log_dir: Path) -> None:
-        self.env, self.log_dir = graph_env(domain, log_dir), log_dir
+        self.env = {**graph_environment(domain, log_dir / "ros"), "PYTHONUNBUFFERED": "1"}
+        self.log_dir = log_dir
         self.running: dict[str, subprocess.Popen] = {}
 
     def start(self, name: str, *argv: str) -> subprocess.Popen:

@@ -48,14 +48,17 @@ def executable(name: str) -> str:
     return found
 
 
-def graph_environment(args: argparse.Namespace, run_dir: Path) -> dict[str, str]:
+def graph_environment(domain_id: int | None, ros_log_dir: Path | str, local_only: bool = True) -> dict[str, str]:
+    """This process's environment for the nodes of one graph: its domain (None: inherited),
+    discovery on this machine only, the fast-discovery profile, ROS's logs in `ros_log_dir`.
+    Also what tests and benchmarks use to run their own private graphs."""
     env = dict(os.environ)
-    if args.discovery == "localhost":
+    if local_only:
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(config_dir() / FASTDDS_PROFILE))
-    env["ROS_LOG_DIR"] = str(run_dir / "logs" / "ros")
-    if args.domain_id is not None:
-        env["ROS_DOMAIN_ID"] = str(args.domain_id)
+    env["ROS_LOG_DIR"] = str(ros_log_dir)
+    if domain_id is not None:
+        env["ROS_DOMAIN_ID"] = str(domain_id)
     return env
 
 
@@ -142,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError) as error:
         print(f"inest-launch: {error}", file=sys.stderr)
         return 2
-    env = graph_environment(args, run_dir)
+    env = graph_environment(args.domain_id, run_dir / "logs" / "ros", args.discovery == "localhost")
     os.environ.update({key: env[key] for key in env if key.startswith(("ROS_", "FASTRTPS_"))})
     import rclpy  # after the environment above: the monitor joins the same graph
 

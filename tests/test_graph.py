@@ -19,6 +19,7 @@ from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.model import load_model
 from inest_reward_node.rewards import RewardScorer, replay
 from rosgraph import BIN, Processes, fresh_domain
+from rosgraph_msgs.msg import Clock
 
 pytestmark = pytest.mark.timeout(300)
 FOREIGN_CAMERA = Path(__file__).parent / "foreign_camera.py"
@@ -156,3 +157,29 @@ def test_the_launcher_runs_the_whole_graph_and_writes_the_reward_trace(tiny_mode
     assert (tmp_path / "graph" / "reward_trace.png").stat().st_size > 1000
     for name in ("sim0", "reward", "agent"):
         assert (tmp_path / "graph" / "logs" / f"{name}.log").exists()
+
+
+def test_a_realtime_simulator_steps_at_8_hz_holding_the_last_action(graph):
+    graph.start("sim0", *sim_node_args("sim0", "-p", "mode:=realtime", "-p", "max_steps:=5"))
+    rclpy.init(domain_id=int(graph.env["ROS_DOMAIN_ID"]))
+    try:
+        node = rclpy.create_node("watcher")
+        statuses, clocks = [], []
+        node.create_subscription(EpisodeStatus, "sim0/episode_status", statuses.append, 50)
+        node.create_subscription(Clock, "/clock", clocks.append, 50)
+        deadline = time.monotonic() + 60
+        while len(statuses) < 2 and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        started, before = time.monotonic(), len(statuses)
+        while time.monotonic() - started < 2.0:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        per_second = (len(statuses) - before) / (time.monotonic() - started)
+    finally:
+        rclpy.shutdown()
+    assert 5 <= per_second <= 11  # 8 Hz of wall time, give or take scheduling
+    assert any(status.truncated for status in statuses) and len({status.episode for status in statuses}) >= 2
+    steps = [status.step for status in statuses]
+    assert max(steps) == 5 and 0 in steps[1:]  # episodes of 5 steps, a new one after each truncation
+    status_times = {(status.header.stamp.sec, status.header.stamp.nanosec) for status in statuses}
+    clock_times = [(clock.clock.sec, clock.clock.nanosec) for clock in clocks]
+    assert len(clock_times) >= len(statuses) - 2 and set(clock_times[2:]) <= status_times  # /clock = simulated time

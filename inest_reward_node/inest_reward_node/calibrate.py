@@ -14,13 +14,27 @@ class CalibrationConfig:
     """Thresholds: for each demonstration, the lowest reward over the last `hold_steps` frames of the
     subtask (all of them must clear the threshold for the tracker to advance); the threshold is
     the `percentile`-th of those over the training demonstrations, so about (100 - percentile) %
-    of them would complete the subtask where it really ends."""
+    of them would complete the subtask where it really ends.
+
+    Demonstrations alone cannot show what the tracker does on behaviour they never contain: the
+    encoder maps unseen frames anywhere, and with the default model random play held the first
+    subtask's demonstration threshold in 55 % of episodes without the red block anywhere near the
+    goal. So the threshold is then raised, where needed, until at most `false_fire_rate` of
+    `random_episodes` random-policy episodes would complete the subtask on frames where it is
+    not really complete (negatives) — but never so far that fewer than `demo_pass_rate` of the
+    demonstrations would complete it before `late_frames` frames after its end."""
 
     percentile: float = 2.0
+    random_episodes: int = 50  # 0: demonstrations only
+    false_fire_rate: float = 0.1
+    demo_pass_rate: float = 0.98
+    late_frames: int = 10
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.percentile <= 100.0:
             raise ValueError(f"percentile must be in [0, 100], got {self.percentile}")
+        if self.random_episodes < 0 or not 0.0 <= self.false_fire_rate <= 1.0 or not 0.0 < self.demo_pass_rate <= 1.0:
+            raise ValueError("random_episodes must be >= 0, false_fire_rate in [0, 1], demo_pass_rate in (0, 1]")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -52,19 +66,41 @@ def subtask_windows(ends: np.ndarray, hold_steps: int) -> list[slice]:
     ]
 
 
+def highest_held(rewards: np.ndarray, hold_steps: int) -> float:
+    """The highest value that `rewards` stays above for `hold_steps` consecutive frames: a tracker
+    with a lower threshold would complete on this sequence."""
+    if len(rewards) < hold_steps:
+        return -np.inf
+    windows = np.lib.stride_tricks.sliding_window_view(rewards, hold_steps)
+    return float(windows.min(axis=1).max())
+
+
 def calibrate_thresholds(
     rewards_per_subtask: Callable[[int], Sequence[np.ndarray]],
     ends: Sequence[np.ndarray],
     num_subtasks: int,
     hold_steps: int,
     config: CalibrationConfig,
+    negatives_per_subtask: Callable[[int], Sequence[np.ndarray]] | None = None,
 ) -> list[float]:
-    """`rewards_per_subtask(i)` gives, per demonstration, subtask i's reward on every frame."""
+    """`rewards_per_subtask(i)` gives, per demonstration, subtask i's reward on every frame;
+    `negatives_per_subtask(i)` the same for random-policy episodes (see CalibrationConfig)."""
     thresholds = []
     for subtask in range(num_subtasks):
-        lows = [
-            float(np.min(rewards[subtask_windows(end, hold_steps)[subtask]]))
-            for rewards, end in zip(rewards_per_subtask(subtask), ends, strict=True)
-        ]
-        thresholds.append(float(np.percentile(lows, config.percentile)))
+        demos = list(zip(rewards_per_subtask(subtask), ends, strict=True))
+        lows = [float(np.min(rewards[subtask_windows(end, hold_steps)[subtask]])) for rewards, end in demos]
+        threshold = float(np.percentile(lows, config.percentile))
+        negatives = [] if negatives_per_subtask is None else negatives_per_subtask(subtask)
+        if len(negatives):
+            held_negatives = [highest_held(r, hold_steps) for r in negatives]
+            negative_level = float(np.quantile(held_negatives, 1 - config.false_fire_rate, method="higher"))
+            spans = [
+                slice(int(subtask_starts(end)[subtask]), int(end[subtask]) + 1 + config.late_frames) for _, end in demos
+            ]
+            demo_held = [
+                highest_held(rewards[span], hold_steps) for (rewards, _), span in zip(demos, spans, strict=True)
+            ]
+            ceiling = float(np.quantile(demo_held, 1 - config.demo_pass_rate, method="lower"))
+            threshold = max(threshold, min(negative_level, ceiling))
+        thresholds.append(threshold)
     return thresholds

@@ -22,8 +22,12 @@ from typing import Any
 
 import numpy as np
 import torch
+from inest_sim_node.collect import holds_current_block
 from inest_sim_node.dataset import METADATA_FILE, DatasetError, read_metadata, sha256_of, write_atomic
+from inest_sim_node.subtasks import completed_subtasks
 from tqdm import tqdm
+
+from inest_sim_node import EnvConfig, SweepToTopEnv
 
 from .calibrate import CalibrationConfig, calibrate_thresholds, goal_embeddings, xirl_distance_scale
 from .data import AugmentConfig, Demo, augment_videos, load_demos, sample_goal_pairs, sample_tcc_batch
@@ -124,13 +128,50 @@ def dataset_hash(root: str | Path) -> str:
     return sha256_of(Path(root) / METADATA_FILE)
 
 
+RANDOM_PLAY_SEED = 40_000_000  # layouts no demonstration, training or evaluation episode uses
+
+
+@dataclass
+class RandomPlay:
+    """One episode of uniformly random actions: the behaviour a policy shows before it has learnt
+    anything, which no demonstration contains."""
+
+    frames: np.ndarray  # (steps, S, S, 3), after each step
+    progress: np.ndarray  # (steps,) ordered blocks in the goal
+    held: np.ndarray  # (steps,) the current block sits in the gripper
+
+    def not_yet_completed(self, scheme: int, subtask: int) -> np.ndarray:
+        """Frames on which `subtask` has not really been completed: where its completion is false."""
+        return completed_subtasks(self.progress, self.held, scheme) <= subtask
+
+
+def random_play(view: str, image_size: int, episodes: int) -> list[RandomPlay]:
+    env = SweepToTopEnv(config=EnvConfig(view=view, image_size=image_size))
+    rng = np.random.default_rng(RANDOM_PLAY_SEED)
+    plays = []
+    for episode in range(episodes):
+        env.reset(seed=RANDOM_PLAY_SEED + episode)
+        frames, progress, held, done = [], [], [], False
+        while not done:
+            _, _, terminated, truncated, _ = env.step(rng.uniform(-1.0, 1.0, 3))
+            frames.append(env.render_camera(view, image_size))
+            progress.append(env.progress)
+            held.append(holds_current_block(env))
+            done = terminated or truncated
+        plays.append(RandomPlay(np.stack(frames), np.array(progress), np.array(held)))
+    return plays
+
+
 def calibrate(
     model: RewardModel, demos: list[Demo], config: PretrainConfig, progress_bar: bool = True
 ) -> dict[str, SubtaskGoals]:
-    """Goal embeddings, XIRL scale and thresholds per subtask scheme, from the training demonstrations."""
+    """Goal embeddings, XIRL scale and thresholds per subtask scheme, from the training demonstrations
+    (and random play, see CalibrationConfig)."""
     embeddings = [
         model.embed(demo.frames) for demo in tqdm(demos, desc="embedding demos", leave=False, disable=not progress_bar)
     ]
+    plays = random_play(config.view, config.encoder.image_size, config.calibration.random_episodes)
+    negatives = [model.embed(play.frames) for play in plays]
     schemes = TCC_SCHEMES if config.method == "tcc" else (1,)
     result = {}
     for scheme in schemes:
@@ -138,12 +179,22 @@ def calibrate(
         goals = goal_embeddings(embeddings, ends)
         partial = SubtaskGoals(goals, [], xirl_distance_scale(embeddings, goals[-1]))
         rewards = [subtask_rewards(model, emb, partial) for emb in embeddings]
+        negative_rewards = [subtask_rewards(model, emb, partial) for emb in negatives]
+
+        def false_completions(subtask: int, scheme=scheme, negative_rewards=negative_rewards) -> list[np.ndarray]:
+            """Random play's reward for `subtask`, -inf where the subtask was really completed."""
+            return [
+                np.where(play.not_yet_completed(scheme, subtask), rewards[:, subtask], -np.inf)
+                for play, rewards in zip(plays, negative_rewards, strict=True)
+            ]
+
         partial.thresholds = calibrate_thresholds(
             lambda i, rewards=rewards: [r[:, i] for r in rewards],
             ends,
             scheme,
             config.shaping.hold_steps,
             config.calibration,
+            false_completions,
         )
         result[str(scheme)] = partial
     return result
@@ -319,6 +370,9 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
     parser.add_argument("--learning-rate", type=float, default=defaults.learning_rate)
     parser.add_argument("--hold-steps", type=int, default=defaults.shaping.hold_steps)
     parser.add_argument("--threshold-percentile", type=float, default=defaults.calibration.percentile)
+    parser.add_argument("--random-episodes", type=int, default=defaults.calibration.random_episodes)
+    parser.add_argument("--false-fire-rate", type=float, default=defaults.calibration.false_fire_rate)
+    parser.add_argument("--demo-pass-rate", type=float, default=defaults.calibration.demo_pass_rate)
     parser.add_argument("--no-augment", action="store_true")
     args = parser.parse_args(argv)
     config = dataclasses.replace(
@@ -330,7 +384,9 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         learning_rate=args.learning_rate,
         augment=dataclasses.replace(defaults.augment, enabled=not args.no_augment),
         shaping=dataclasses.replace(defaults.shaping, hold_steps=args.hold_steps),
-        calibration=CalibrationConfig(percentile=args.threshold_percentile),
+        calibration=CalibrationConfig(
+            args.threshold_percentile, args.random_episodes, args.false_fire_rate, args.demo_pass_rate
+        ),
         **{name: getattr(args, name) for name in INTEGER_OPTIONS},
     )
     return config, args

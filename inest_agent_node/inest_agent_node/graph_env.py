@@ -26,7 +26,7 @@ from std_srvs.srv import Trigger
 
 from inest_sim_node import SweepToTopEnv
 
-from .pairing import REWARD, STATE, StepMailbox
+from .pairing import REWARD, STATE, STATUS, StepMailbox
 
 
 class GraphVecEnv(VecEnv):
@@ -78,8 +78,7 @@ class GraphVecEnv(VecEnv):
                 deadline = time.monotonic() + self.timeout
 
     def call(self, client, request, what: str):
-        while not client.service_is_ready():
-            self.wait_until(client.service_is_ready, lambda: f"service {client.srv_name} ({what}) is not available")
+        self.wait_until(client.service_is_ready, lambda: f"service {client.srv_name} ({what}) is not available")
         future = client.call_async(request)
         self.wait_until(future.done, lambda: f"no answer from {client.srv_name} ({what})")
         return future.result()
@@ -143,7 +142,7 @@ class GraphVecEnv(VecEnv):
         infos: list[dict[str, Any]] = []
         for index in range(self.num_envs):
             new_stamp, messages = results[index]
-            status = messages["episode_status"]
+            status = messages[STATUS]
             observation = np.asarray(messages[STATE].values, dtype=np.float32)
             info: dict[str, Any] = {"env_reward": status.env_reward, "score": status.score}
             if self.learned_reward:

@@ -69,8 +69,7 @@ def evaluate_over_graph(env: GraphVecEnv, model: SAC, episodes: int, seed: int =
 class AgentNode(Node):
     def __init__(self) -> None:
         super().__init__("inest_agent_node")
-        values = declare_dataclass(self, AgentNodeConfig())
-        self.settings = AgentNodeConfig(**{**values, "namespaces": tuple(values["namespaces"])})
+        self.settings = AgentNodeConfig(**declare_dataclass(self, AgentNodeConfig()))
         # one torch thread: with updates overlapping the step, the other core serves simulators and reward node
         defaults = TrainConfig(reward="topic", intrinsic=IntrinsicConfig(mode="none"), threads=1)
         self.train_config = TrainConfig.from_dict(

@@ -48,8 +48,7 @@ class RewardNodeConfig:
 class RewardNode(Node):
     def __init__(self) -> None:
         super().__init__("inest_reward_node")
-        values = declare_dataclass(self, RewardNodeConfig())
-        config = RewardNodeConfig(**{**values, "streams": tuple(values["streams"])})
+        config = RewardNodeConfig(**declare_dataclass(self, RewardNodeConfig()))
         intrinsic = IntrinsicConfig(**declare_dataclass(self, IntrinsicConfig(), "intrinsic."))
         if intrinsic.mode == "state":
             raise ValueError("intrinsic.mode 'state' needs state vectors; the reward node only sees images")

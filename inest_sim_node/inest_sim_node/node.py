@@ -55,8 +55,7 @@ class SimNodeConfig:
 class SimNode(Node):
     def __init__(self) -> None:
         super().__init__("inest_sim_node")
-        values = declare_dataclass(self, SimNodeConfig())
-        self.config = config = SimNodeConfig(**{**values, "cameras": tuple(values["cameras"])})
+        self.config = config = SimNodeConfig(**declare_dataclass(self, SimNodeConfig()))
         self.env = SweepToTopEnv(config=EnvConfig(max_steps=config.max_steps))
         self.period_ns = round(1e9 / self.env.config.world.control_hz)
         qos = QoSProfile(depth=10)

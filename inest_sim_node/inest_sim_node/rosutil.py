@@ -34,7 +34,8 @@ def namespaced(namespace: str, name: str) -> str:
 def declare_dataclass(node: Node, instance: Any, prefix: str = "") -> dict[str, Any]:
     """Declare one ROS parameter per field (nested dataclasses as `field.sub`), the dataclass's
     defaults as the parameters' defaults; return the values the node was started with, nested
-    like the dataclass (None defaults are declared as "" and come back as None when unset)."""
+    like the dataclass (None defaults are declared as "" and come back as None when unset; tuple
+    fields are declared as lists and come back as tuples)."""
     values: dict[str, Any] = {}
     for field in dataclasses.fields(instance):
         default = getattr(instance, field.name)
@@ -42,10 +43,13 @@ def declare_dataclass(node: Node, instance: Any, prefix: str = "") -> dict[str, 
         if dataclasses.is_dataclass(default):
             values[field.name] = declare_dataclass(node, default, f"{name}.")
             continue
-        if isinstance(default, tuple):
-            default = list(default)
-        value = node.declare_parameter(name, "" if default is None else default).value
-        values[field.name] = None if default is None and value == "" else value
+        if default is None:
+            value = node.declare_parameter(name, "").value
+            values[field.name] = None if value == "" else value
+        elif isinstance(default, tuple):
+            values[field.name] = tuple(node.declare_parameter(name, list(default)).value)
+        else:
+            values[field.name] = node.declare_parameter(name, default).value
     return values
 
 

@@ -62,9 +62,13 @@ def graph_environment(domain_id: int | None, ros_log_dir: Path | str, local_only
     return env
 
 
+def simulator_namespaces(count: int) -> list[str]:
+    return [f"sim{index}" for index in range(count)]
+
+
 def node_commands(args: argparse.Namespace, run_dir: Path) -> list[tuple[str, list[str]]]:
     """(log name, argv) of every node to start, in start order."""
-    namespaces = [f"sim{index}" for index in range(args.sims)]
+    namespaces = simulator_namespaces(args.sims)
     listed = "[" + ", ".join(namespaces) + "]"
     extra: dict[str, list[str]] = {node: [] for node in NODES}
     for setting in args.param:
@@ -146,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"inest-launch: {error}", file=sys.stderr)
         return 2
     env = graph_environment(args.domain_id, run_dir / "logs" / "ros", args.discovery == "localhost")
-    os.environ.update({key: env[key] for key in env if key.startswith(("ROS_", "FASTRTPS_"))})
+    os.environ.update(env)
     import rclpy  # after the environment above: the monitor joins the same graph
 
     from .monitor import GraphMonitor, watch
@@ -159,16 +163,15 @@ def main(argv: list[str] | None = None) -> int:
         )
         print(f"inest-launch: started {name} (pid {children[name].pid}), log {log.name}", flush=True)
     rclpy.init()
-    monitor = GraphMonitor([f"sim{index}" for index in range(args.sims)])
+    monitor = GraphMonitor(simulator_namespaces(args.sims))
     status = 0
     try:
-        lead = children.get("agent") or children["reward"]
         watch(monitor, args.interval, until=lambda: any(p.poll() is not None for p in children.values()))
         for name, process in children.items():
             if process.poll() not in (None, 0):
                 print(f"inest-launch: {name} exited with status {process.returncode}; see its log", file=sys.stderr)
                 status = process.returncode
-        if lead.poll() == 0 and "agent" in children:
+        if "agent" in children and children["agent"].poll() == 0:
             print_results(run_dir / "agent" / RESULTS_FILE)
     except KeyboardInterrupt:
         print("\ninest-launch: stopping", flush=True)

@@ -26,7 +26,7 @@ from inest_agent_node.graph_env import GraphVecEnv
 from inest_agent_node.train import Trainer
 from inest_bringup.launcher import graph_environment
 from inest_reward_node.intrinsic import IntrinsicConfig
-from train_speed import ROUND_STEPS, ROUNDS, WARM_UP_STEPS, trainer_speeds
+from train_speed import RANDOM_STEPS, ROUND_STEPS, ROUNDS, WARM_UP_STEPS, trainer_speeds
 
 from inest_agent_node.config import SacConfig, TrainConfig
 
@@ -46,7 +46,7 @@ def main() -> None:
     namespaces = [f"sim{index}" for index in range(SIMS)]
     bin_dir = Path(sys.executable).parent
     common = {"num_envs": SIMS, "total_steps": WARM_UP_STEPS + ROUNDS * ROUND_STEPS, "eval_every": 10**9}
-    sac = SacConfig(learning_starts=WARM_UP_STEPS)
+    sac = SacConfig(learning_starts=RANDOM_STEPS)
     Path(LOGS).mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as root:
         env = graph_environment(domain, root)

@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
+import torch
 
 INTRINSIC_MODES = ("none", "embedding", "state")
 
@@ -79,13 +80,16 @@ class NoveltyMemory:
             self.size = min(self.size + 1, self.capacity)
 
     def novelty(self, queries: np.ndarray, k: int) -> np.ndarray:
-        """Distance of each query to its k-th nearest stored vector (k capped at the size); 0 when empty."""
-        queries = np.atleast_2d(queries).astype(np.float32)
+        """Distance of each query to its k-th nearest stored vector (k capped at the size); 0 when empty.
+
+        Computed with torch, not numpy: numpy's BLAS starts its own spinning threads once the
+        memory is large, and on a small machine they fight the encoder's and SAC's torch threads
+        (training ran at half speed once the memories filled)."""
+        queries = torch.as_tensor(np.atleast_2d(queries), dtype=torch.float32)
         if self.size == 0:
             return np.zeros(len(queries))
-        stored = self.vectors[: self.size]
-        squared = (
-            np.square(queries).sum(1, keepdims=True) - 2.0 * queries @ stored.T + self.squared_norms[None, : self.size]
-        )
-        kth = min(k, self.size) - 1
-        return np.sqrt(np.maximum(np.partition(squared, kth, axis=1)[:, kth], 0.0))
+        stored = torch.from_numpy(self.vectors[: self.size])
+        squared = queries.square().sum(1, keepdim=True) - 2.0 * queries @ stored.T
+        squared += torch.from_numpy(self.squared_norms[: self.size])
+        kth = squared.kthvalue(min(k, self.size), dim=1).values
+        return kth.clamp_min(0.0).sqrt().numpy()

@@ -73,11 +73,12 @@ class NoveltyMemory:
         return memory
 
     def add(self, vectors: np.ndarray) -> None:
-        for vector in np.atleast_2d(vectors):
-            self.vectors[self.next] = vector
-            self.squared_norms[self.next] = np.dot(self.vectors[self.next], self.vectors[self.next])
-            self.next = (self.next + 1) % self.capacity
-            self.size = min(self.size + 1, self.capacity)
+        vectors = np.atleast_2d(vectors)[-self.capacity :]  # of more than fit, the newest
+        slots = (self.next + np.arange(len(vectors))) % self.capacity
+        self.vectors[slots] = vectors
+        self.squared_norms[slots] = np.square(self.vectors[slots]).sum(1)
+        self.next = int((self.next + len(vectors)) % self.capacity)
+        self.size = min(self.size + len(vectors), self.capacity)
 
     def novelty(self, queries: np.ndarray, k: int) -> np.ndarray:
         """Distance of each query to its k-th nearest stored vector (k capped at the size); 0 when empty.

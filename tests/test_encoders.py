@@ -45,8 +45,20 @@ def test_resize_frames_to_the_encoder_input():
         resize_frames(np.zeros((64, 64, 3), np.uint8), 48)
 
 
+def test_small_cnn_widths_set_its_convolutions():
+    config = EncoderConfig(image_size=48, widths=[8, 16, 16])  # as read back from JSON
+    assert config.widths == (8, 16, 16) and config.to_dict()["widths"] == (8, 16, 16)
+    model = build_encoder(config).eval()
+    convolutions = [module for module in model.modules() if isinstance(module, torch.nn.Conv2d)]
+    assert [conv.out_channels for conv in convolutions] == [8, 16, 16]
+    with torch.no_grad():
+        assert model(frames_to_tensor(np.zeros((2, 48, 48, 3), np.uint8))).shape == (2, 32)
+
+
 def test_encoder_config_rejects_bad_values():
     with pytest.raises(ValueError, match="unknown encoder kind"):
         EncoderConfig(kind="vgg")
     with pytest.raises(ValueError, match="image_size"):
         EncoderConfig(image_size=8)
+    with pytest.raises(ValueError, match="widths"):
+        EncoderConfig(widths=(32, 0))

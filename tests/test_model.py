@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 from inest_reward_node.data import load_demos
+from inest_reward_node.encoders import EncoderConfig
 from inest_reward_node.model import MODEL_FILE, WEIGHTS_FILE, ModelError, load_model
 from inest_reward_node.pretrain import STATE_FILE, Pretrainer, dataset_hash, pretrain
 from safetensors import safe_open
@@ -72,6 +73,13 @@ def test_interrupted_run_resumes_where_it_stopped(tiny_tcc_run, tmp_path):
         Pretrainer(short, run_dir)
     with pytest.raises(ValueError, match="settings differ from the saved run: learning_rate"):
         Pretrainer(dataclasses.replace(short, iterations=20, learning_rate=0.5), run_dir, resume=True)
+    saved = json.loads((run_dir / "config.json").read_text())
+    del saved["encoder"]["widths"]  # a run written before the setting existed: it used the default
+    (run_dir / "config.json").write_text(json.dumps(saved))
+    with pytest.raises(ValueError, match="settings differ from the saved run: encoder"):
+        Pretrainer(
+            dataclasses.replace(short, encoder=EncoderConfig(image_size=48, widths=(8, 8))), run_dir, resume=True
+        )
     longer = dataclasses.replace(short, iterations=15)
     trainer = Pretrainer(longer, run_dir, resume=True)
     assert trainer.iteration == 10

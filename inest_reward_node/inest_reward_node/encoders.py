@@ -24,8 +24,12 @@ class EncoderConfig:
     embedding_dim: int = 32
     image_size: int = 96  # frames of any other size are resized to this before encoding
     channels_last: bool = True
+    widths: tuple[int, ...] = (32, 64, 64, 64)  # small_cnn: output channels of its strided convolutions
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "widths", tuple(self.widths))  # JSON gives a list
+        if not self.widths or min(self.widths) < 1:
+            raise ValueError(f"widths must be positive channel counts, got {list(self.widths)}")
         if self.kind not in ENCODER_KINDS:
             raise ValueError(f"unknown encoder kind {self.kind!r}; expected one of {ENCODER_KINDS}")
         if self.embedding_dim <= 0:
@@ -95,19 +99,17 @@ class SmallCNN(nn.Module):
     pixels lie so close that TCC's softmaxes start uniform and the loss sits on a plateau.
     """
 
-    channels = (32, 64, 64, 64)
-
-    def __init__(self, embedding_dim: int, image_size: int) -> None:
+    def __init__(self, embedding_dim: int, image_size: int, widths: tuple[int, ...] = (32, 64, 64, 64)) -> None:
         super().__init__()
         layers: list[nn.Module] = []
         in_channels = 3
-        for out_channels in self.channels:
+        for out_channels in widths:
             layers += [nn.Conv2d(in_channels, out_channels, 3, 2, 1, bias=False), nn.BatchNorm2d(out_channels)]
             layers.append(nn.ReLU(inplace=True))
             in_channels = out_channels
         self.features = nn.Sequential(*layers)
         side = image_size
-        for _ in self.channels:
+        for _ in widths:
             side = (side + 1) // 2
         self.head = nn.Sequential(
             nn.Flatten(),
@@ -125,7 +127,7 @@ def build_encoder(config: EncoderConfig) -> nn.Module:
     model = (
         ResNet18(config.embedding_dim)
         if config.kind == "resnet18"
-        else SmallCNN(config.embedding_dim, config.image_size)
+        else SmallCNN(config.embedding_dim, config.image_size, config.widths)
     )
     if config.channels_last:
         model = model.to(memory_format=torch.channels_last)

@@ -252,7 +252,8 @@ class Pretrainer:
 
     def check_run_dir(self, resume: bool) -> None:
         settings = self.config.to_dict()
-        prepare_run_dir(self.run_dir, settings, resume, self.config.settings_that_matter())
+        defaults = PretrainConfig(dataset="").to_dict()
+        prepare_run_dir(self.run_dir, settings, resume, self.config.settings_that_matter(), defaults)
 
     def save_state(self) -> None:
         state = {
@@ -365,6 +366,12 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
     parser.add_argument("--encoder", choices=ENCODER_KINDS, default=defaults.encoder.kind)
     parser.add_argument("--image-size", type=int, default=defaults.encoder.image_size)
     parser.add_argument("--embedding-dim", type=int, default=defaults.encoder.embedding_dim)
+    parser.add_argument(
+        "--widths",
+        type=lambda text: tuple(int(width) for width in text.split(",")),
+        default=defaults.encoder.widths,
+        help="small_cnn: channels of its convolutions, comma-separated (default %(default)s)",
+    )
     for name in INTEGER_OPTIONS:
         parser.add_argument(f"--{name.replace('_', '-')}", type=int, default=getattr(defaults, name))
     parser.add_argument("--learning-rate", type=float, default=defaults.learning_rate)
@@ -380,7 +387,9 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         dataset=args.dataset,
         method=args.method,
         view=args.view,
-        encoder=EncoderConfig(kind=args.encoder, image_size=args.image_size, embedding_dim=args.embedding_dim),
+        encoder=EncoderConfig(
+            kind=args.encoder, image_size=args.image_size, embedding_dim=args.embedding_dim, widths=args.widths
+        ),
         learning_rate=args.learning_rate,
         augment=dataclasses.replace(defaults.augment, enabled=not args.no_augment),
         shaping=dataclasses.replace(defaults.shaping, hold_steps=args.hold_steps),

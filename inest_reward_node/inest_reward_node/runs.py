@@ -11,14 +11,33 @@ from typing import Any
 CONFIG_FILE = "config.json"
 
 
-def prepare_run_dir(run_dir: Path, settings: dict[str, Any], resume: bool, must_match: Iterable[str]) -> None:
-    """Create `run_dir` and write config.json; refuse to overwrite a run unless resuming it unchanged."""
+def with_defaults(saved: dict[str, Any], defaults: dict[str, Any]) -> dict[str, Any]:
+    """`saved` with the settings added since it was written filled in from `defaults` (nested)."""
+    filled = dict(saved)
+    for key, default in defaults.items():
+        if key not in filled:
+            filled[key] = default
+        elif isinstance(default, dict) and isinstance(filled[key], dict):
+            filled[key] = with_defaults(filled[key], default)
+    return filled
+
+
+def prepare_run_dir(
+    run_dir: Path,
+    settings: dict[str, Any],
+    resume: bool,
+    must_match: Iterable[str],
+    defaults: dict[str, Any] | None = None,
+) -> None:
+    """Create `run_dir` and write config.json; refuse to overwrite a run unless resuming it unchanged.
+    A setting the saved run lacks (added since) counts as its value in `defaults`."""
     path = run_dir / CONFIG_FILE
     if path.exists():
         if not resume:
             raise FileExistsError(f"{run_dir} already holds a run; pass --resume to continue it or pick --out")
-        saved = json.loads(path.read_text())
-        differing = sorted(key for key in must_match if saved.get(key) != settings[key])
+        as_json = json.loads(json.dumps({"settings": settings, "defaults": defaults or {}}))  # tuples -> lists
+        saved = with_defaults(json.loads(path.read_text()), as_json["defaults"])
+        differing = sorted(key for key in must_match if saved.get(key) != as_json["settings"][key])
         if differing:
             raise ValueError(f"cannot resume {run_dir}: settings differ from the saved run: {', '.join(differing)}")
     run_dir.mkdir(parents=True, exist_ok=True)

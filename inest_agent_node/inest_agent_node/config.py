@@ -8,6 +8,7 @@ from typing import Any
 
 import yaml
 from inest_reward_node.intrinsic import IntrinsicConfig
+from inest_reward_node.runs import merge_settings
 
 REWARDS = ("env", "xirl", "holdr", "inest", "topic")  # topic: served by inest_reward_node (graph only)
 
@@ -88,11 +89,3 @@ class TrainConfig:
         if not isinstance(data, dict):
             raise ValueError(f"{path} must hold a mapping of training settings")
         return cls.from_dict(merge_settings(data, overrides or {}))
-
-
-def merge_settings(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
-    """`overrides` on top of `base`, nested mappings (intrinsic, sac) merged key by key."""
-    merged = dict(base)
-    for key, value in overrides.items():
-        merged[key] = {**merged.get(key, {}), **value} if isinstance(value, dict) else value
-    return merged

@@ -23,7 +23,7 @@ from inest_reward_node.coverage import measure_coverage, plot_coverage
 from inest_reward_node.intrinsic import INTRINSIC_MODES
 from inest_reward_node.model import ModelError, load_model
 from inest_reward_node.rewards import RewardScorer
-from inest_reward_node.runs import prepare_run_dir
+from inest_reward_node.runs import merge_settings, prepare_run_dir
 from inest_sim_node.dataset import write_atomic
 from stable_baselines3 import SAC
 from stable_baselines3.common.callbacks import BaseCallback
@@ -32,7 +32,7 @@ from tqdm import tqdm
 
 from inest_sim_node import EnvConfig
 
-from .config import REWARDS, TrainConfig, merge_settings
+from .config import REWARDS, TrainConfig
 from .envs import LearnedRewardVecEnv, make_vec_env
 from .evaluate import EvalResult, evaluate, format_table, plot_learning_curve
 

@@ -99,7 +99,7 @@ class SmallCNN(nn.Module):
     pixels lie so close that TCC's softmaxes start uniform and the loss sits on a plateau.
     """
 
-    def __init__(self, embedding_dim: int, image_size: int, widths: tuple[int, ...] = (32, 64, 64, 64)) -> None:
+    def __init__(self, embedding_dim: int, image_size: int, widths: tuple[int, ...]) -> None:
         super().__init__()
         layers: list[nn.Module] = []
         in_channels = 3

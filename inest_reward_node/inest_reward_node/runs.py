@@ -11,15 +11,12 @@ from typing import Any
 CONFIG_FILE = "config.json"
 
 
-def with_defaults(saved: dict[str, Any], defaults: dict[str, Any]) -> dict[str, Any]:
-    """`saved` with the settings added since it was written filled in from `defaults` (nested)."""
-    filled = dict(saved)
-    for key, default in defaults.items():
-        if key not in filled:
-            filled[key] = default
-        elif isinstance(default, dict) and isinstance(filled[key], dict):
-            filled[key] = with_defaults(filled[key], default)
-    return filled
+def merge_settings(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+    """`overrides` on top of `base`, nested mappings (a config's sub-configs) merged key by key."""
+    merged = dict(base)
+    for key, value in overrides.items():
+        merged[key] = {**(merged.get(key) or {}), **value} if isinstance(value, dict) else value
+    return merged
 
 
 def prepare_run_dir(
@@ -36,7 +33,7 @@ def prepare_run_dir(
         if not resume:
             raise FileExistsError(f"{run_dir} already holds a run; pass --resume to continue it or pick --out")
         as_json = json.loads(json.dumps({"settings": settings, "defaults": defaults or {}}))  # tuples -> lists
-        saved = with_defaults(json.loads(path.read_text()), as_json["defaults"])
+        saved = merge_settings(as_json["defaults"], json.loads(path.read_text()))
         differing = sorted(key for key in must_match if saved.get(key) != as_json["settings"][key])
         if differing:
             raise ValueError(f"cannot resume {run_dir}: settings differ from the saved run: {', '.join(differing)}")

@@ -47,11 +47,19 @@ class IntrinsicConfig:
 
 
 class NoveltyMemory:
-    """A ring buffer of at most `capacity` vectors; the oldest is overwritten first."""
+    """A ring buffer of at most `capacity` vectors; the oldest is overwritten first.
+
+    Searched with torch, not numpy: numpy's BLAS starts its own spinning threads once the
+    memory is large, and on a small machine they fight the encoder's and SAC's torch threads
+    (training ran at half speed once the memories filled). The vectors are stored as columns:
+    a few queries times a contiguous (dim, capacity) matrix is 2-3x faster than times a
+    transposed row store.
+    """
 
     def __init__(self, dim: int, capacity: int) -> None:
-        self.vectors = np.zeros((capacity, dim), dtype=np.float32)
+        self.columns = np.zeros((dim, capacity), dtype=np.float32)
         self.squared_norms = np.zeros(capacity, dtype=np.float32)  # kept with the vectors for fast k-NN
+        self._searched = torch.from_numpy(self.columns), torch.from_numpy(self.squared_norms)  # same memory
         self.capacity = capacity
         self.size = 0
         self.next = 0
@@ -61,9 +69,10 @@ class NoveltyMemory:
 
     def contents(self) -> np.ndarray:
         """Stored vectors, oldest first."""
+        rows = self.columns.T
         if self.size < self.capacity:
-            return self.vectors[: self.size].copy()
-        return np.concatenate([self.vectors[self.next :], self.vectors[: self.next]])
+            return rows[: self.size].copy()
+        return np.concatenate([rows[self.next :], rows[: self.next]])
 
     @classmethod
     def restored(cls, contents: np.ndarray, capacity: int) -> NoveltyMemory:
@@ -73,24 +82,20 @@ class NoveltyMemory:
         return memory
 
     def add(self, vectors: np.ndarray) -> None:
-        vectors = np.atleast_2d(vectors)[-self.capacity :]  # of more than fit, the newest
+        vectors = np.asarray(np.atleast_2d(vectors)[-self.capacity :], dtype=np.float32)  # of more, the newest
         slots = (self.next + np.arange(len(vectors))) % self.capacity
-        self.vectors[slots] = vectors
-        self.squared_norms[slots] = np.square(self.vectors[slots]).sum(1)
+        self.columns[:, slots] = vectors.T
+        self.squared_norms[slots] = np.square(vectors).sum(1)
         self.next = int((self.next + len(vectors)) % self.capacity)
         self.size = min(self.size + len(vectors), self.capacity)
 
     def novelty(self, queries: np.ndarray, k: int) -> np.ndarray:
-        """Distance of each query to its k-th nearest stored vector (k capped at the size); 0 when empty.
-
-        Computed with torch, not numpy: numpy's BLAS starts its own spinning threads once the
-        memory is large, and on a small machine they fight the encoder's and SAC's torch threads
-        (training ran at half speed once the memories filled)."""
+        """Distance of each query to its k-th nearest stored vector (k capped at the size); 0 when empty."""
         queries = torch.as_tensor(np.atleast_2d(queries), dtype=torch.float32)
         if self.size == 0:
             return np.zeros(len(queries))
-        stored = torch.from_numpy(self.vectors[: self.size])
-        squared = queries.square().sum(1, keepdim=True) - 2.0 * queries @ stored.T
-        squared += torch.from_numpy(self.squared_norms[: self.size])
+        columns, squared_norms = self._searched
+        squared = torch.addmm(squared_norms[: self.size], queries, columns[:, : self.size], alpha=-2.0)
+        squared += queries.square().sum(1, keepdim=True)
         kth = squared.kthvalue(min(k, self.size), dim=1).values
         return kth.clamp_min(0.0).sqrt().numpy()

@@ -12,6 +12,7 @@ import json
 import sys
 import tempfile
 import time
+from typing import Any
 
 import numpy as np
 import torch
@@ -52,9 +53,10 @@ def trainer_speeds(trainers: dict[str, Trainer]) -> dict[str, list[float]]:
     return speeds
 
 
-def paired_ratio(numerator: list[float], denominator: list[float]) -> float:
-    """Median over rounds of the speed ratio within each round."""
-    return float(np.median(np.array(numerator) / np.array(denominator)))
+def paired_ratio(numerator: list[float], denominator: list[float]) -> dict[str, Any]:
+    """Median and quartiles over rounds of the speed ratio within each round."""
+    quartiles = np.percentile(np.array(numerator) / np.array(denominator), [25, 50, 75])
+    return {"ratio": round(float(quartiles[1]), 3), "ratio_quartiles": np.round(quartiles[[0, 2]], 3).tolist()}
 
 
 def median_speeds(speeds: dict[str, list[float]]) -> dict[str, int]:
@@ -78,7 +80,6 @@ def main() -> None:
             "inest": TrainConfig(reward="inest", model=model, **common),
         }
     )
-    ratios = np.array(speeds["inest"]) / np.array(speeds["env"])
     medians = median_speeds(speeds)
     print(
         json.dumps(
@@ -86,8 +87,7 @@ def main() -> None:
                 "benchmark": "train_speed",
                 "env_reward_steps_per_s": medians["env"],
                 "inest_reward_steps_per_s": medians["inest"],
-                "ratio": round(paired_ratio(speeds["inest"], speeds["env"]), 3),
-                "ratio_quartiles": np.round(np.percentile(ratios, [25, 75]), 3).tolist(),
+                **paired_ratio(speeds["inest"], speeds["env"]),
                 "target_ratio": 0.8,
                 "threads": threads,
                 "settings": "default SAC config, 4 envs; inest: 3 subtasks + embedding bonus",

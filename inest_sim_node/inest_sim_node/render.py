@@ -8,8 +8,6 @@ Polygons are drawn anti-aliased with sub-pixel precision, so small images stay f
 
 from __future__ import annotations
 
-import math
-
 import cv2
 import numpy as np
 
@@ -40,9 +38,10 @@ def _darker(colour: tuple[int, int, int]) -> tuple[int, int, int]:
     return int(r * 0.7), int(g * 0.7), int(b * 0.7)
 
 
-def _rotation(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s], [s, c]])
+def _rotation(angle: float | np.ndarray) -> np.ndarray:
+    """Rotation matrices for one angle (2, 2) or an array of them (..., 2, 2)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
 
 
 class SceneRenderer:
@@ -100,9 +99,7 @@ class SceneRenderer:
         """Every outline's points in fixed-point pixel coordinates for OpenCV, in one pass."""
         bodies = [*world.block_bodies, *world.finger_bodies, world.robot]
         poses = np.array([(0.0, 0.0, 0.0)] + [(body.angle, *body.position) for body in bodies])
-        cos, sin = np.cos(poses[:, 0]), np.sin(poses[:, 0])
-        rotations = np.stack([np.stack([cos, -sin], -1), np.stack([sin, cos], -1)], 1)  # (frames, 2, 2)
-        body_to_pixel = linear @ rotations
+        body_to_pixel = linear @ _rotation(poses[:, 0])
         pixel_offsets = poses[:, 1:] @ linear.T + offset
         frames = self._frame_of_point
         pts = np.einsum("pij,pj->pi", body_to_pixel[frames], self._local) + pixel_offsets[frames]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from inest_agent_node.envs import LearnedRewardVecEnv, make_vec_env
 from inest_agent_node.evaluate import evaluate, format_table
-from inest_agent_node.train import Trainer
+from inest_agent_node.train import RewardBatchingSAC, Trainer
 from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.model import load_model
 from inest_reward_node.rewards import RewardScorer
@@ -57,6 +57,36 @@ def test_learned_reward_replaces_the_environment_reward(tiny_tcc_run):
             assert scorer.trackers[index].completed == 0  # reset for the next episode
     assert ends == 2  # both 20-step episodes ended once
     assert sum(len(memory) for memory in scorer.memories) == 50  # memories kept across episode boundaries
+
+
+def test_scoring_several_steps_at_once_gives_the_rewards_of_scoring_every_step(tiny_tcc_run):
+    _, run_dir = tiny_tcc_run
+    model = load_model(run_dir / "model")
+
+    def learned_reward_env(batch_steps: int) -> LearnedRewardVecEnv:
+        scorer = RewardScorer(model, 3, intrinsic=IntrinsicConfig(mode="embedding"), num_envs=2)
+        venv = make_vec_env(2, EnvConfig(max_steps=20), seed=0, frames=("ego", 48))
+        env = LearnedRewardVecEnv(venv, scorer, batch_steps=batch_steps)
+        env.reset()
+        return env
+
+    every_step, batched = learned_reward_env(1), learned_reward_env(3)
+    rng = np.random.default_rng(0)
+    expected = []
+    for _ in range(25):  # the 20-step episodes end inside a batch
+        actions = rng.uniform(-1, 1, (2, 3)).astype(np.float32)
+        expected.append(every_step.step(actions)[1])
+        _, rewards, _, infos = batched.step(actions)
+        assert np.isnan(rewards).all()  # not known yet: nothing may train on it
+    taken = batched.take_rewards(100)
+    assert len(taken) == 24 and len(batched.waiting) == 1  # eight full batches of 3, one step waiting
+    assert "learned_subtask" not in infos[0]
+    batched.score_waiting()
+    taken += batched.take_rewards(100)
+    assert infos[0]["learned_subtask"] == every_step.scorer.trackers[0].current
+    np.testing.assert_allclose(np.array(taken), np.array(expected), rtol=1e-4, atol=1e-5)
+    for ours, reference in zip(batched.scorer.memories, every_step.scorer.memories, strict=True):
+        np.testing.assert_allclose(ours.contents(), reference.contents(), rtol=1e-4, atol=1e-5)
 
 
 def tiny_config(total_steps: int) -> TrainConfig:
@@ -108,6 +138,7 @@ def test_resumed_inest_run_keeps_its_exploration_memories(tiny_tcc_run, tmp_path
         reward="inest",
         model=str(reward_run / "model"),
         num_envs=2,
+        reward_batch_steps=3,  # 100 vector steps: the checkpoint must store a transition still waiting
         total_steps=200,
         eval_every=200,
         eval_episodes=1,
@@ -117,6 +148,7 @@ def test_resumed_inest_run_keeps_its_exploration_memories(tiny_tcc_run, tmp_path
     )
     first = Trainer(config, tmp_path / "run", progress_bar=False)
     first.train()
+    assert isinstance(first.model, RewardBatchingSAC) and not first.model.held_transitions
     sizes = [len(memory) for memory in first.env.scorer.memories]
     assert sum(sizes) == 200  # every frame of both environments went into a subtask memory
     results = json.loads((tmp_path / "run" / "results.json").read_text())
@@ -124,7 +156,31 @@ def test_resumed_inest_run_keeps_its_exploration_memories(tiny_tcc_run, tmp_path
     assert (tmp_path / "run" / "coverage.png").exists()
     resumed = Trainer(dataclasses.replace(config, total_steps=300), tmp_path / "run", resume=True, progress_bar=False)
     assert [len(memory) for memory in resumed.env.scorer.memories] == sizes
+    assert resumed.model.replay_buffer.size() == 100  # every transition, none left waiting
     np.testing.assert_array_equal(resumed.env.scorer.memories[0].contents(), first.env.scorer.memories[0].contents())
+
+
+def test_held_transitions_reach_the_buffer_as_sac_would_store_them(tiny_tcc_run, tmp_path):
+    _, reward_run = tiny_tcc_run
+    buffers = {}
+    for batch_steps in (1, 4):
+        config = TrainConfig(
+            reward="inest",
+            model=str(reward_run / "model"),
+            num_envs=2,
+            reward_batch_steps=batch_steps,
+            sac=SacConfig(learning_starts=1000, buffer_size=1000, batch_size=16, net_arch=(16, 16)),
+        )
+        trainer = Trainer(config, tmp_path / f"batch{batch_steps}", progress_bar=False)
+        trainer.model.learn(70)  # 35 vector steps of seeded random actions
+        if batch_steps > 1:
+            assert trainer.model.replay_buffer.size() == 32 and len(trainer.model.held_transitions) == 3
+            trainer.model.settle_rewards()
+        buffers[batch_steps] = trainer.model.replay_buffer
+    assert buffers[4].size() == buffers[1].size() == 35
+    for name in ("observations", "next_observations", "actions", "dones"):
+        np.testing.assert_array_equal(getattr(buffers[4], name)[:35], getattr(buffers[1], name)[:35])
+    np.testing.assert_allclose(buffers[4].rewards[:35], buffers[1].rewards[:35], rtol=1e-4, atol=1e-5)
 
 
 def test_command_line_flags_override_the_config_file(tmp_path):

@@ -39,6 +39,8 @@ class TrainConfig:
     view: str = "ego"
     intrinsic: IntrinsicConfig = field(default_factory=IntrinsicConfig)
     num_envs: int = 4
+    # vector steps whose frames are scored in one encoder pass (speed only; see envs.LearnedRewardVecEnv)
+    reward_batch_steps: int = 4
     total_steps: int = 200_000
     eval_every: int = 10_000
     eval_episodes: int = 50
@@ -55,7 +57,14 @@ class TrainConfig:
             raise ValueError(f"the {self.reward} reward needs a reward model folder (model)")
         if self.reward != "inest" and self.intrinsic.mode != "none":
             raise ValueError(f"the intrinsic bonus belongs to the inest reward, not {self.reward}")
-        for name in ("num_envs", "total_steps", "eval_every", "eval_episodes", "checkpoint_every"):
+        for name in (
+            "num_envs",
+            "reward_batch_steps",
+            "total_steps",
+            "eval_every",
+            "eval_episodes",
+            "checkpoint_every",
+        ):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
 

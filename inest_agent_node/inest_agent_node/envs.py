@@ -7,6 +7,8 @@ which auto-reset would otherwise replace), all N frames in one encoder forward p
 
 from __future__ import annotations
 
+from collections import deque
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium
@@ -45,17 +47,41 @@ def make_vec_env(num_envs: int, env_config: EnvConfig, seed: int, frames: tuple[
     return venv
 
 
-class LearnedRewardVecEnv(VecEnvWrapper):
-    """Replaces the environments' reward by the learned one; the oracle stays in info["env_reward"]."""
+@dataclass
+class WaitingStep:
+    """One vector step whose frames are not scored yet."""
 
-    def __init__(self, venv: VecEnv, scorer: RewardScorer, record_every: int = 10) -> None:
+    frames: np.ndarray  # (N, H, W, 3)
+    states: np.ndarray  # (N, state_dim), the transition's next states (terminal ones at episode ends)
+    dones: np.ndarray  # (N,)
+    infos: list[dict[str, Any]]
+
+
+class LearnedRewardVecEnv(VecEnvWrapper):
+    """Replaces the environments' reward by the learned one; the oracle stays in info["env_reward"].
+
+    With `batch_steps` > 1 the frames of that many vector steps are scored together: one encoder
+    pass over batch_steps x N frames costs about 40 % less per frame on 2 cores than N at a time,
+    then the trackers and novelty memories advance step by step as if unbatched. step() then
+    returns NaN rewards (a reward that is not known yet must not be trained on) and the learned
+    ones come out of take_rewards() in step order, for an algorithm that holds each transition
+    until its reward is known (train.RewardBatchingSAC). The subtask and intrinsic entries of a
+    step's infos are filled in when it is scored.
+    """
+
+    def __init__(self, venv: VecEnv, scorer: RewardScorer, record_every: int = 10, batch_steps: int = 1) -> None:
         super().__init__(venv)
         if scorer.num_envs != venv.num_envs:
             raise ValueError(f"scorer tracks {scorer.num_envs} environments, the vector env has {venv.num_envs}")
+        if batch_steps < 1:
+            raise ValueError(f"batch_steps must be at least 1, got {batch_steps}")
         self.scorer = scorer
         self.record_every = record_every
-        self.steps = 0
+        self.batch_steps = batch_steps
+        self.steps = 0  # vector steps scored
         self.visited: list[np.ndarray] = []  # every `record_every`-th vector step's embeddings, for coverage
+        self.waiting: list[WaitingStep] = []
+        self.scored: deque[np.ndarray] = deque()  # learned rewards not yet taken, oldest first
 
     def exploration_state(self) -> dict[str, np.ndarray]:
         """Novelty memories and the coverage record: what a resumed run must not forget."""
@@ -71,6 +97,7 @@ class LearnedRewardVecEnv(VecEnvWrapper):
         self.visited = [state["visited"]] if "visited" in state else []
 
     def reset(self) -> np.ndarray:
+        self.score_waiting()  # frames of the episodes being cut off still earn their rewards
         self.scorer.reset()
         return self.venv.reset()
 
@@ -80,14 +107,33 @@ class LearnedRewardVecEnv(VecEnvWrapper):
         states = np.stack(
             [info.get("terminal_observation", obs) for info, obs in zip(infos, observations, strict=True)]
         )
-        parts = self.scorer.score(frames, states)
-        if self.steps % self.record_every == 0:
-            self.visited.append(parts.embeddings)
-        self.steps += 1
         for index, info in enumerate(infos):
             info["env_reward"] = float(env_rewards[index])
-            info["learned_subtask"] = int(parts.subtask[index])
-            info["intrinsic_reward"] = float(parts.intrinsic[index])
-            if dones[index]:
-                self.scorer.reset(index)
-        return observations, parts.total.astype(np.float32), dones, infos
+        self.waiting.append(WaitingStep(frames, states, dones.copy(), infos))
+        if len(self.waiting) >= self.batch_steps:
+            self.score_waiting()
+        if self.batch_steps == 1:
+            return observations, self.scored.popleft(), dones, infos
+        return observations, np.full(self.num_envs, np.nan, dtype=np.float32), dones, infos
+
+    def score_waiting(self) -> None:
+        """Score every waiting step: one encoder pass, then the trackers step by step, in order."""
+        if not self.waiting:
+            return
+        embeddings = self.scorer.model.embed(np.concatenate([step.frames for step in self.waiting]))
+        for step, step_embeddings in zip(self.waiting, np.split(embeddings, len(self.waiting)), strict=True):
+            parts = self.scorer.score_embeddings(step_embeddings, step.states)
+            if self.steps % self.record_every == 0:
+                self.visited.append(parts.embeddings)
+            self.steps += 1
+            for index, info in enumerate(step.infos):
+                info["learned_subtask"] = int(parts.subtask[index])
+                info["intrinsic_reward"] = float(parts.intrinsic[index])
+                if step.dones[index]:
+                    self.scorer.reset(index)
+            self.scored.append(parts.total.astype(np.float32))
+        self.waiting.clear()
+
+    def take_rewards(self, at_most: int) -> list[np.ndarray]:
+        """Up to `at_most` learned rewards not taken yet, one (N,) array per vector step, oldest first."""
+        return [self.scored.popleft() for _ in range(min(at_most, len(self.scored)))]

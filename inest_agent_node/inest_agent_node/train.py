@@ -14,6 +14,7 @@ import dataclasses
 import json
 import sys
 import time
+from collections import deque
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,7 @@ from inest_reward_node.rewards import RewardScorer
 from inest_reward_node.runs import merge_settings, prepare_run_dir
 from inest_sim_node.dataset import write_atomic
 from stable_baselines3 import SAC
+from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 from tqdm import tqdm
@@ -51,7 +53,8 @@ def build_env(config: TrainConfig) -> VecEnv:
     model = load_model(config.model, view=config.view, scheme=scheme)
     frames = (config.view, model.image_size)
     scorer = RewardScorer(model, scheme, config.reward, config.intrinsic, config.num_envs)
-    return LearnedRewardVecEnv(make_vec_env(config.num_envs, env_config, config.seed, frames), scorer)
+    venv = make_vec_env(config.num_envs, env_config, config.seed, frames)
+    return LearnedRewardVecEnv(venv, scorer, batch_steps=config.reward_batch_steps)
 
 
 class OverlappedSAC(SAC):
@@ -71,6 +74,49 @@ class OverlappedSAC(SAC):
         pending = self.__dict__.setdefault("pending_updates", [])
         while pending:
             SAC.train(self, *pending.pop(0))
+
+
+class RewardBatchingSAC(SAC):
+    """SAC on a LearnedRewardVecEnv that scores several vector steps' frames at once.
+
+    A transition waits until its learned reward is known (at most batch_steps - 1 vector steps),
+    then goes into the replay buffer exactly as SAC would have stored it; the updates meanwhile
+    sample from the transitions already stored. stable-baselines3 hands `_store_transition` fresh
+    arrays every step, so holding them is safe.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.held_transitions: deque[tuple[Any, ...]] = deque()
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "held_transitions"]
+
+    def _store_transition(self, replay_buffer, buffer_action, new_obs, reward, dones, infos) -> None:
+        super()._store_transition(TransitionHolder(self.held_transitions), buffer_action, new_obs, reward, dones, infos)
+        self.store_scored_transitions(replay_buffer)
+
+    def store_scored_transitions(self, replay_buffer: ReplayBuffer | None = None) -> None:
+        buffer = replay_buffer or self.replay_buffer
+        # at a checkpoint the current step is scored before SAC hands over its transition
+        for reward in self.env.take_rewards(len(self.held_transitions)):
+            observation, next_observation, action, _, dones, infos = self.held_transitions.popleft()
+            buffer.add(observation, next_observation, action, reward, dones, infos)
+
+    def settle_rewards(self) -> None:
+        """Score the frames still waiting for a full batch and store their transitions (checkpoints)."""
+        self.env.score_waiting()
+        self.store_scored_transitions()
+
+
+class TransitionHolder:
+    """Stands in for the replay buffer in SAC's `_store_transition`: keeps the transition it is given."""
+
+    def __init__(self, held: deque[tuple[Any, ...]]) -> None:
+        self.held = held
+
+    def add(self, *transition: Any) -> None:
+        self.held.append(transition)
 
 
 def policy_of(model: SAC):
@@ -142,7 +188,11 @@ class Trainer:
         torch.set_num_threads(config.threads)
         self.env = env if env is not None else build_env(config)
         checkpoint = self.run_dir / CHECKPOINT_DIR
-        algorithm = OverlappedSAC if overlap_updates else SAC
+        algorithm = SAC
+        if overlap_updates:
+            algorithm = OverlappedSAC
+        elif isinstance(self.env, LearnedRewardVecEnv) and self.env.batch_steps > 1:
+            algorithm = RewardBatchingSAC
         if resume and (checkpoint / "model.zip").exists():
             self.model = algorithm.load(
                 checkpoint / "model.zip", env=self.env, tensorboard_log=str(self.run_dir / "tensorboard")
@@ -169,12 +219,14 @@ class Trainer:
 
     def check_run_dir(self, resume: bool) -> None:
         settings = self.config.to_dict()
-        prepare_run_dir(self.run_dir, settings, resume, set(settings) - {"total_steps"})
+        prepare_run_dir(self.run_dir, settings, resume, set(settings) - {"total_steps", "reward_batch_steps"})
 
     def save_checkpoint(self) -> None:
         """Model, replay buffer and history, each written whole before it replaces the last one."""
         checkpoint = self.run_dir / CHECKPOINT_DIR
         checkpoint.mkdir(exist_ok=True)
+        if isinstance(self.model, RewardBatchingSAC):
+            self.model.settle_rewards()
         write_atomic(checkpoint / "replay_buffer.pkl", lambda path: self.model.save_replay_buffer(path))
         write_atomic(checkpoint / "model.zip", lambda path: self.model.save(path))
         write_atomic(checkpoint / "history.json", lambda path: path.write_text(json.dumps(self.history)))

@@ -96,6 +96,7 @@ class NoveltyMemory:
             return np.zeros(len(queries))
         columns, squared_norms = self._searched
         squared = torch.addmm(squared_norms[: self.size], queries, columns[:, : self.size], alpha=-2.0)
-        squared += queries.square().sum(1, keepdim=True)
-        kth = squared.kthvalue(min(k, self.size), dim=1).values
+        # the largest of the k smallest: topk is about 3x faster than kthvalue on a full memory
+        kth = squared.topk(min(k, self.size), dim=1, largest=False, sorted=False).values.amax(1)
+        kth += queries.square().sum(1)
         return kth.clamp_min(0.0).sqrt().numpy()

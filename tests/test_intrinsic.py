@@ -33,6 +33,30 @@ def test_k_is_capped_at_the_memory_size_and_an_empty_memory_gives_zero():
     assert memory.novelty(np.zeros((1, 2)), k=10)[0] == pytest.approx(5.0)  # the farthest of the two
 
 
+@pytest.mark.parametrize(
+    ("capacity", "prefilled"),
+    [(50, 0), (50, 20), (50, 50), (12, 12), (8, 3)],  # empty, filling, full and wrapping, batch > capacity
+)
+def test_rounds_searched_at_once_match_novelty_then_add_round_by_round(capacity, prefilled):
+    rng = np.random.default_rng(capacity + prefilled)
+    stored = rng.normal(size=(prefilled + 7, 4))  # 7 more than fit once the memory wraps
+    vectors = rng.normal(size=(10, 4))
+    rounds = np.array([0, 0, 1, 2, 2, 2, 3, 3, 5, 5])
+    at_once, round_by_round = NoveltyMemory(4, capacity), NoveltyMemory(4, capacity)
+    for memory in (at_once, round_by_round):
+        memory.add(stored[:prefilled])
+        memory.add(stored[prefilled:][: 7 * (capacity == prefilled)])  # a full memory's ring has moved on
+    expected = []
+    for current in np.unique(rounds):
+        members = rounds == current
+        expected += round_by_round.novelty(vectors[members], k=3).tolist()
+        round_by_round.add(vectors[members])
+    np.testing.assert_allclose(at_once.novelty_in_rounds(vectors, rounds, k=3), expected, rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(at_once.contents(), round_by_round.contents())
+    with pytest.raises(ValueError, match="ascending"):
+        at_once.novelty_in_rounds(vectors, rounds[::-1], k=3)
+
+
 def test_weight_is_raised_for_n_steps_after_a_switch():
     config = IntrinsicConfig(weight=0.2, boosted_weight=0.4, boost_steps=3)
     steps = np.array([-1, 0, 1, 2, 3, 10])  # -1: no switch yet this episode

@@ -117,20 +117,20 @@ class LearnedRewardVecEnv(VecEnvWrapper):
         return observations, np.full(self.num_envs, np.nan, dtype=np.float32), dones, infos
 
     def score_waiting(self) -> None:
-        """Score every waiting step: one encoder pass, then the trackers step by step, in order."""
+        """Score every waiting step: one encoder pass and one novelty search for all of them."""
         if not self.waiting:
             return
-        embeddings = self.scorer.model.embed(np.concatenate([step.frames for step in self.waiting]))
-        for step, step_embeddings in zip(self.waiting, np.split(embeddings, len(self.waiting)), strict=True):
-            parts = self.scorer.score_embeddings(step_embeddings, step.states)
+        frames = np.concatenate([step.frames for step in self.waiting])
+        embeddings = self.scorer.model.embed(frames).reshape(len(self.waiting), self.num_envs, -1)
+        states = np.stack([step.states for step in self.waiting])
+        ends = np.stack([step.dones for step in self.waiting])
+        for step, parts in zip(self.waiting, self.scorer.score_steps(embeddings, states, ends), strict=True):
             if self.steps % self.record_every == 0:
                 self.visited.append(parts.embeddings)
             self.steps += 1
             for index, info in enumerate(step.infos):
                 info["learned_subtask"] = int(parts.subtask[index])
                 info["intrinsic_reward"] = float(parts.intrinsic[index])
-                if step.dones[index]:
-                    self.scorer.reset(index)
             self.scored.append(parts.total.astype(np.float32))
         self.waiting.clear()
 

@@ -70,6 +70,31 @@ class RewardParts:
     embeddings: np.ndarray  # (N, D) the frames' embeddings, for coverage analysis
 
 
+@dataclass
+class TrackedStep:
+    """One frame per row after the trackers moved, before the novelty bonus."""
+
+    distance: np.ndarray
+    bonus: np.ndarray
+    subtask: np.ndarray
+    completed: np.ndarray
+    switched: np.ndarray  # this frame completed a subtask
+    novelty_subtask: np.ndarray  # the subtask the frame was taken in, whose memory judges it
+    since_switch: np.ndarray  # steps since the environment's last switch before this frame (-1: none)
+
+    @classmethod
+    def empty(cls, count: int) -> TrackedStep:
+        return cls(
+            distance=np.zeros(count),
+            bonus=np.zeros(count),
+            subtask=np.zeros(count, int),
+            completed=np.zeros(count, int),
+            switched=np.zeros(count, bool),
+            novelty_subtask=np.zeros(count, int),
+            since_switch=np.zeros(count, int),
+        )
+
+
 class RewardScorer:
     """The learned reward for N environments at once, with per-environment subtask trackers and
     per-subtask novelty memories shared by all of them.
@@ -120,6 +145,30 @@ class RewardScorer:
         environment envs[i] (a subset of the environments, each at most once, or repeats in order)."""
         return self.advance(subtask_rewards(self.model, embeddings, self.goals), embeddings, states, envs)
 
+    def score_steps(
+        self, embeddings: np.ndarray, states: np.ndarray | None, episode_ends: np.ndarray
+    ) -> list[RewardParts]:
+        """Several vector steps at once. embeddings: (T, N, D) in step order; after step t every
+        environment with episode_ends[t] starts a new episode. The rewards of T calls of
+        `score_embeddings` with resets in between, but the novelty memories are searched once."""
+        steps, count = embeddings.shape[:2]
+        if count != self.num_envs:
+            raise ValueError(f"expected one frame per environment ({self.num_envs}) per step, got {count}")
+        per_subtask = subtask_rewards(self.model, embeddings.reshape(steps * count, -1), self.goals)
+        tracked = []
+        for step, rewards in enumerate(per_subtask.reshape(steps, count, -1)):
+            tracked.append(self.track(rewards, np.arange(count)))
+            for env in np.flatnonzero(episode_ends[step]):
+                self.reset(env)
+        intrinsic = self.intrinsic_bonus(
+            embeddings.reshape(steps * count, -1),
+            None if states is None else states.reshape(steps * count, -1),
+            np.concatenate([step.novelty_subtask for step in tracked]),
+            np.concatenate([step.since_switch for step in tracked]),
+            np.repeat(np.arange(steps), count),
+        ).reshape(steps, count)
+        return [self.parts(step, embeddings[t], intrinsic[t]) for t, step in enumerate(tracked)]
+
     def advance(
         self,
         per_subtask: np.ndarray,
@@ -135,41 +184,51 @@ class RewardScorer:
         envs = np.asarray(envs, dtype=int)
         if len(envs) != len(per_subtask) or np.any((envs < 0) | (envs >= self.num_envs)):
             raise ValueError(f"environment indices {envs.tolist()} do not fit {len(per_subtask)} frames")
-        count = len(envs)
-        distance, bonus, subtask, completed = (
-            np.zeros(count),
-            np.zeros(count),
-            np.zeros(count, int),
-            np.zeros(count, int),
-        )
-        switched = np.zeros(count, bool)
-        novelty_subtask, since_switch = np.zeros(count, int), np.zeros(count, int)
+        step = self.track(per_subtask, envs)
+        intrinsic = self.intrinsic_bonus(embeddings, states, step.novelty_subtask, step.since_switch)
+        return self.parts(step, embeddings, intrinsic)
+
+    def track(self, per_subtask: np.ndarray, envs: np.ndarray) -> TrackedStep:
+        """The trackers of `envs` (row i: envs[i]) take one frame each; everything but the novelty."""
+        step = TrackedStep.empty(len(envs))
         for row, (env, rewards) in enumerate(zip(envs, per_subtask, strict=True)):
             tracker = self.trackers[env]
-            novelty_subtask[row] = tracker.current  # novelty is judged within the subtask the frame was taken in
-            since_switch[row] = self.steps_since_switch[env]
+            step.novelty_subtask[row] = tracker.current  # novelty is judged within the subtask the frame was taken in
+            step.since_switch[row] = self.steps_since_switch[env]
             was_done = tracker.done
             reward_now = rewards[tracker.current]
-            switched[row] = tracker.update(reward_now)
+            step.switched[row] = tracker.update(reward_now)
             if self.variant == "inest":
-                distance[row] = 0.0 if was_done else reward_now
-                bonus[row] = tracker.completed * self.model.shaping.subtask_bonus
+                step.distance[row] = 0.0 if was_done else reward_now
+                step.bonus[row] = tracker.completed * self.model.shaping.subtask_bonus
             else:
-                distance[row] = rewards[-1]
-            subtask[row], completed[row] = tracker.current, tracker.completed
-            if switched[row]:
+                step.distance[row] = rewards[-1]
+            step.subtask[row], step.completed[row] = tracker.current, tracker.completed
+            if step.switched[row]:
                 self.steps_since_switch[env] = 0
             elif self.steps_since_switch[env] >= 0:
                 self.steps_since_switch[env] += 1
+        return step
+
+    def parts(self, step: TrackedStep, embeddings: np.ndarray, intrinsic: np.ndarray) -> RewardParts:
+        distance = step.distance
         if self.variant == "xirl":
             distance = -self.goals.distance_scale * np.linalg.norm(embeddings - self.goals.goals[-1], axis=1)
-        intrinsic = self.intrinsic_bonus(embeddings, states, novelty_subtask, since_switch)
-        total = distance + bonus + intrinsic
-        return RewardParts(total, distance, bonus, intrinsic, subtask, completed, switched, embeddings)
+        total = distance + step.bonus + intrinsic
+        return RewardParts(
+            total, distance, step.bonus, intrinsic, step.subtask, step.completed, step.switched, embeddings
+        )
 
     def intrinsic_bonus(
-        self, embeddings: np.ndarray, states: np.ndarray | None, subtasks: np.ndarray, since_switch: np.ndarray
+        self,
+        embeddings: np.ndarray,
+        states: np.ndarray | None,
+        subtasks: np.ndarray,
+        since_switch: np.ndarray,
+        rounds: np.ndarray | None = None,
     ) -> np.ndarray:
+        """Weighted novelty of each frame in its subtask's memory; frames of a later round (step)
+        are judged against a memory holding the earlier rounds' frames (None: all one round)."""
         config = self.intrinsic
         if config.mode == "none":
             return np.zeros(len(subtasks))
@@ -181,11 +240,11 @@ class RewardScorer:
             vectors = embeddings * inest_distance_unit(self.model, self.goals)
         if not self.memories:
             self.memories = [NoveltyMemory(vectors.shape[1], config.capacity) for _ in range(self.num_subtasks)]
+        rounds = np.zeros(len(subtasks), int) if rounds is None else rounds
         novelty = np.zeros(len(subtasks))
         for subtask in np.unique(subtasks):
             members = subtasks == subtask
-            novelty[members] = self.memories[subtask].novelty(vectors[members], config.k)
-            self.memories[subtask].add(vectors[members])
+            novelty[members] = self.memories[subtask].novelty_in_rounds(vectors[members], rounds[members], config.k)
         return config.weight_after(since_switch) * novelty
 
 

@@ -41,7 +41,9 @@ def _darker(colour: tuple[int, int, int]) -> tuple[int, int, int]:
 def _rotation(angle: float | np.ndarray) -> np.ndarray:
     """Rotation matrices for one angle (2, 2) or an array of them (..., 2, 2)."""
     c, s = np.cos(angle), np.sin(angle)
-    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+    rotation = np.empty((*np.shape(angle), 2, 2))  # filled in place: nested np.stack was a third of a frame
+    rotation[..., 0, 0], rotation[..., 0, 1], rotation[..., 1, 0], rotation[..., 1, 1] = c, -s, s, c
+    return rotation
 
 
 class SceneRenderer:
@@ -65,7 +67,8 @@ class SceneRenderer:
         outlines.append((finger_frame + len(FINGER_SIDES), np.zeros((1, 2))))  # the robot's centre
         self._local = np.concatenate([points for _, points in outlines])
         self._frame_of_point = np.concatenate([np.full(len(points), frame) for frame, points in outlines])
-        self._outline_starts = np.cumsum([len(points) for _, points in outlines])[:-1]
+        ends = np.cumsum([len(points) for _, points in outlines])
+        self._outline_slices = [slice(start, end) for start, end in zip([0, *ends[:-1]], ends, strict=True)]
         self._extent = 2 * arena * ZOOM_OUT  # world units spanned by an image side
         self._blanks: dict[int, np.ndarray] = {}
         self._allo_backdrops: dict[int, np.ndarray] = {}
@@ -76,7 +79,8 @@ class SceneRenderer:
         if size <= 0:
             raise ValueError(f"image size must be positive, got {size}")
         linear, offset = self._camera(world, view, size)
-        outlines = np.split(self._outline_pixels(world, linear, offset), self._outline_starts)
+        pixels = self._outline_pixels(world, linear, offset)
+        outlines = [pixels[part] for part in self._outline_slices]
         floor, goal, *bodies, centre = outlines
         blocks, fingers = bodies[: len(BLOCK_COLOURS)], bodies[len(BLOCK_COLOURS) :]
         if view == "allo":

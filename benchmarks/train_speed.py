@@ -90,6 +90,7 @@ def main() -> None:
                 **paired_ratio(speeds["inest"], speeds["env"]),
                 "target_ratio": 0.8,
                 "threads": threads,
+                "reward_batch_steps": TrainConfig.reward_batch_steps,
                 "settings": "default SAC config, 4 envs; inest: 3 subtasks + embedding bonus",
             }
         )

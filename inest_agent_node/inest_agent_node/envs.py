@@ -62,7 +62,8 @@ class LearnedRewardVecEnv(VecEnvWrapper):
 
     With `batch_steps` > 1 the frames of that many vector steps are scored together: one encoder
     pass over batch_steps x N frames costs about 40 % less per frame on 2 cores than N at a time,
-    then the trackers and novelty memories advance step by step as if unbatched. step() then
+    and the novelty memories are searched once; the rewards are those of scoring every step
+    (RewardScorer.score_embeddings with rounds). step() then
     returns NaN rewards (a reward that is not known yet must not be trained on) and the learned
     ones come out of take_rewards() in step order, for an algorithm that holds each transition
     until its reward is known (train.RewardBatchingSAC). The subtask and intrinsic entries of a
@@ -121,10 +122,16 @@ class LearnedRewardVecEnv(VecEnvWrapper):
         if not self.waiting:
             return
         frames = np.concatenate([step.frames for step in self.waiting])
-        embeddings = self.scorer.model.embed(frames).reshape(len(self.waiting), self.num_envs, -1)
-        states = np.stack([step.states for step in self.waiting])
-        ends = np.stack([step.dones for step in self.waiting])
-        for step, parts in zip(self.waiting, self.scorer.score_steps(embeddings, states, ends), strict=True):
+        count, steps = self.num_envs, len(self.waiting)
+        scored = self.scorer.score_embeddings(
+            self.scorer.model.embed(frames),
+            np.concatenate([step.states for step in self.waiting]),
+            envs=np.tile(np.arange(count), steps),
+            rounds=np.repeat(np.arange(steps), count),
+            episode_ends=np.concatenate([step.dones for step in self.waiting]),
+        )
+        for position, step in enumerate(self.waiting):
+            parts = scored.select(slice(position * count, (position + 1) * count))
             if self.steps % self.record_every == 0:
                 self.visited.append(parts.embeddings)
             self.steps += 1

@@ -287,6 +287,7 @@ def reference_curve(runs_root: Path) -> list[list[float]] | None:
 INTEGER_FLAGS = (
     "total_steps",
     "num_envs",
+    "reward_batch_steps",
     "eval_every",
     "eval_episodes",
     "final_eval_episodes",

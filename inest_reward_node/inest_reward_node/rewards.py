@@ -10,7 +10,7 @@ the HOLD-R reward for HOLD-R models.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -68,6 +68,9 @@ class RewardParts:
     completed: np.ndarray  # (N,) subtasks completed after this frame
     switched: np.ndarray  # (N,) bool, this frame completed a subtask
     embeddings: np.ndarray  # (N, D) the frames' embeddings, for coverage analysis
+
+    def select(self, rows: slice | np.ndarray) -> RewardParts:
+        return RewardParts(*(getattr(self, field.name)[rows] for field in fields(self)))
 
 
 @dataclass
@@ -139,35 +142,21 @@ class RewardScorer:
         return self.score_embeddings(self.model.embed(frames), states)
 
     def score_embeddings(
-        self, embeddings: np.ndarray, states: np.ndarray | None = None, envs: np.ndarray | None = None
+        self,
+        embeddings: np.ndarray,
+        states: np.ndarray | None = None,
+        envs: np.ndarray | None = None,
+        rounds: np.ndarray | None = None,
+        episode_ends: np.ndarray | None = None,
     ) -> RewardParts:
-        """Without `envs`, one embedding per environment in order; with it, row i belongs to
-        environment envs[i] (a subset of the environments, each at most once, or repeats in order)."""
-        return self.advance(subtask_rewards(self.model, embeddings, self.goals), embeddings, states, envs)
-
-    def score_steps(
-        self, embeddings: np.ndarray, states: np.ndarray | None, episode_ends: np.ndarray
-    ) -> list[RewardParts]:
-        """Several vector steps at once. embeddings: (T, N, D) in step order; after step t every
-        environment with episode_ends[t] starts a new episode. The rewards of T calls of
-        `score_embeddings` with resets in between, but the novelty memories are searched once."""
-        steps, count = embeddings.shape[:2]
-        if count != self.num_envs:
-            raise ValueError(f"expected one frame per environment ({self.num_envs}) per step, got {count}")
-        per_subtask = subtask_rewards(self.model, embeddings.reshape(steps * count, -1), self.goals)
-        tracked = []
-        for step, rewards in enumerate(per_subtask.reshape(steps, count, -1)):
-            tracked.append(self.track(rewards, np.arange(count)))
-            for env in np.flatnonzero(episode_ends[step]):
-                self.reset(env)
-        intrinsic = self.intrinsic_bonus(
-            embeddings.reshape(steps * count, -1),
-            None if states is None else states.reshape(steps * count, -1),
-            np.concatenate([step.novelty_subtask for step in tracked]),
-            np.concatenate([step.since_switch for step in tracked]),
-            np.repeat(np.arange(steps), count),
-        ).reshape(steps, count)
-        return [self.parts(step, embeddings[t], intrinsic[t]) for t, step in enumerate(tracked)]
+        """Without `envs`, one embedding per environment in order. With it, row i belongs to
+        environment envs[i] and is taken in order. `rounds` (ascending) groups the rows into
+        vector steps: a later round's frames are judged against novelty memories holding the
+        earlier rounds' frames, as if scored one call per round, with one search for all.
+        `episode_ends[i]`: envs[i] starts a new episode after row i."""
+        return self.advance(
+            subtask_rewards(self.model, embeddings, self.goals), embeddings, states, envs, rounds, episode_ends
+        )
 
     def advance(
         self,
@@ -175,8 +164,10 @@ class RewardScorer:
         embeddings: np.ndarray,
         states: np.ndarray | None,
         envs: np.ndarray | None = None,
+        rounds: np.ndarray | None = None,
+        episode_ends: np.ndarray | None = None,
     ) -> RewardParts:
-        """Move the frames' trackers one frame on, given each frame's reward against every subtask goal."""
+        """Move the frames' trackers on, given each frame's reward against every subtask goal."""
         if envs is None:
             if len(per_subtask) != self.num_envs:
                 raise ValueError(f"expected one frame per environment ({self.num_envs}), got {len(per_subtask)}")
@@ -184,12 +175,16 @@ class RewardScorer:
         envs = np.asarray(envs, dtype=int)
         if len(envs) != len(per_subtask) or np.any((envs < 0) | (envs >= self.num_envs)):
             raise ValueError(f"environment indices {envs.tolist()} do not fit {len(per_subtask)} frames")
-        step = self.track(per_subtask, envs)
-        intrinsic = self.intrinsic_bonus(embeddings, states, step.novelty_subtask, step.since_switch)
+        rounds = np.zeros(len(envs), int) if rounds is None else np.asarray(rounds)
+        if len(rounds) != len(envs) or np.any(np.diff(rounds) < 0):
+            raise ValueError("rounds must give every frame its round, in ascending order")
+        ends = np.zeros(len(envs), bool) if episode_ends is None else np.asarray(episode_ends, dtype=bool)
+        step = self.track(per_subtask, envs, ends)
+        intrinsic = self.intrinsic_bonus(embeddings, states, step.novelty_subtask, step.since_switch, rounds)
         return self.parts(step, embeddings, intrinsic)
 
-    def track(self, per_subtask: np.ndarray, envs: np.ndarray) -> TrackedStep:
-        """The trackers of `envs` (row i: envs[i]) take one frame each; everything but the novelty."""
+    def track(self, per_subtask: np.ndarray, envs: np.ndarray, episode_ends: np.ndarray) -> TrackedStep:
+        """The trackers of `envs` (row i: envs[i]) take their frames in order; everything but the novelty."""
         step = TrackedStep.empty(len(envs))
         for row, (env, rewards) in enumerate(zip(envs, per_subtask, strict=True)):
             tracker = self.trackers[env]
@@ -208,6 +203,8 @@ class RewardScorer:
                 self.steps_since_switch[env] = 0
             elif self.steps_since_switch[env] >= 0:
                 self.steps_since_switch[env] += 1
+            if episode_ends[row]:
+                self.reset(env)
         return step
 
     def parts(self, step: TrackedStep, embeddings: np.ndarray, intrinsic: np.ndarray) -> RewardParts:
@@ -225,10 +222,10 @@ class RewardScorer:
         states: np.ndarray | None,
         subtasks: np.ndarray,
         since_switch: np.ndarray,
-        rounds: np.ndarray | None = None,
+        rounds: np.ndarray,
     ) -> np.ndarray:
         """Weighted novelty of each frame in its subtask's memory; frames of a later round (step)
-        are judged against a memory holding the earlier rounds' frames (None: all one round)."""
+        are judged against a memory holding the earlier rounds' frames."""
         config = self.intrinsic
         if config.mode == "none":
             return np.zeros(len(subtasks))
@@ -240,7 +237,6 @@ class RewardScorer:
             vectors = embeddings * inest_distance_unit(self.model, self.goals)
         if not self.memories:
             self.memories = [NoveltyMemory(vectors.shape[1], config.capacity) for _ in range(self.num_subtasks)]
-        rounds = np.zeros(len(subtasks), int) if rounds is None else rounds
         novelty = np.zeros(len(subtasks))
         for subtask in np.unique(subtasks):
             members = subtasks == subtask

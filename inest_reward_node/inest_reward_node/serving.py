@@ -117,30 +117,28 @@ class StreamScorer:
                 position += 1
         if not waiting:
             return results
+        waiting.sort(key=lambda item: item[0])  # stable: round by round, streams in order within one
         embeddings = self.scorer.model.embed(np.stack([item[3] for item in waiting]))
-        rounds = np.array([item[0] for item in waiting])
-        for current in range(rounds.max() + 1):
-            rows = np.flatnonzero(rounds == current)
-            streams = np.array([waiting[row][1] for row in rows])
-            parts = self.scorer.score_embeddings(embeddings[rows], envs=streams)
-            now = time.perf_counter()
-            for index, row in enumerate(rows):
-                _, stream, stamp, _, arrived, frame_id = waiting[row]
-                scored = ScoredFrame(
-                    stream,
-                    stamp,
-                    float(parts.total[index]),
-                    float(parts.distance[index]),
-                    float(parts.bonus[index]),
-                    float(parts.intrinsic[index]),
-                    int(parts.subtask[index]),
-                    bool(parts.switched[index]),
-                    arrived,
-                    frame_id,
-                )
-                self.last[stream] = scored
-                results.append(scored)
-                self.stats.latencies.append(now - arrived)
+        parts = self.scorer.score_embeddings(
+            embeddings, envs=np.array([item[1] for item in waiting]), rounds=np.array([item[0] for item in waiting])
+        )
+        now = time.perf_counter()
+        for index, (_, stream, stamp, _, arrived, frame_id) in enumerate(waiting):
+            scored = ScoredFrame(
+                stream,
+                stamp,
+                float(parts.total[index]),
+                float(parts.distance[index]),
+                float(parts.bonus[index]),
+                float(parts.intrinsic[index]),
+                int(parts.subtask[index]),
+                bool(parts.switched[index]),
+                arrived,
+                frame_id,
+            )
+            self.last[stream] = scored
+            results.append(scored)
+            self.stats.latencies.append(now - arrived)
         self.stats.scored += len(waiting)
         self.stats.batches += 1
         return results

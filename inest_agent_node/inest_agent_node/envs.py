@@ -63,11 +63,11 @@ class LearnedRewardVecEnv(VecEnvWrapper):
     With `batch_steps` > 1 the frames of that many vector steps are scored together: one encoder
     pass over batch_steps x N frames costs about 40 % less per frame on 2 cores than N at a time,
     and the novelty memories are searched once; the rewards are those of scoring every step
-    (RewardScorer.score_embeddings with rounds). step() then
-    returns NaN rewards (a reward that is not known yet must not be trained on) and the learned
-    ones come out of take_rewards() in step order, for an algorithm that holds each transition
-    until its reward is known (train.RewardBatchingSAC). The subtask and intrinsic entries of a
-    step's infos are filled in when it is scored.
+    (RewardScorer.score_embeddings with rounds). step() then returns NaN rewards (a reward that
+    is not known yet must not be trained on) and the learned ones come out of take_rewards() in
+    step order, for an algorithm that holds each transition until its reward is known
+    (train.RewardBatchingSAC). The subtask and intrinsic entries of a step's infos are filled
+    in when it is scored.
     """
 
     def __init__(self, venv: VecEnv, scorer: RewardScorer, record_every: int = 10, batch_steps: int = 1) -> None:

@@ -27,7 +27,6 @@ from inest_reward_node.rewards import RewardScorer
 from inest_reward_node.runs import merge_settings, prepare_run_dir
 from inest_sim_node.dataset import write_atomic
 from stable_baselines3 import SAC
-from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 from tqdm import tqdm
@@ -94,14 +93,13 @@ class RewardBatchingSAC(SAC):
 
     def _store_transition(self, replay_buffer, buffer_action, new_obs, reward, dones, infos) -> None:
         super()._store_transition(TransitionHolder(self.held_transitions), buffer_action, new_obs, reward, dones, infos)
-        self.store_scored_transitions(replay_buffer)
+        self.store_scored_transitions()
 
-    def store_scored_transitions(self, replay_buffer: ReplayBuffer | None = None) -> None:
-        buffer = replay_buffer or self.replay_buffer
+    def store_scored_transitions(self) -> None:
         # at a checkpoint the current step is scored before SAC hands over its transition
         for reward in self.env.take_rewards(len(self.held_transitions)):
             observation, next_observation, action, _, dones, infos = self.held_transitions.popleft()
-            buffer.add(observation, next_observation, action, reward, dones, infos)
+            self.replay_buffer.add(observation, next_observation, action, reward, dones, infos)
 
     def settle_rewards(self) -> None:
         """Score the frames still waiting for a full batch and store their transitions (checkpoints)."""

@@ -73,31 +73,6 @@ class RewardParts:
         return RewardParts(*(getattr(self, field.name)[rows] for field in fields(self)))
 
 
-@dataclass
-class TrackedStep:
-    """One frame per row after the trackers moved, before the novelty bonus."""
-
-    distance: np.ndarray
-    bonus: np.ndarray
-    subtask: np.ndarray
-    completed: np.ndarray
-    switched: np.ndarray  # this frame completed a subtask
-    novelty_subtask: np.ndarray  # the subtask the frame was taken in, whose memory judges it
-    since_switch: np.ndarray  # steps since the environment's last switch before this frame (-1: none)
-
-    @classmethod
-    def empty(cls, count: int) -> TrackedStep:
-        return cls(
-            distance=np.zeros(count),
-            bonus=np.zeros(count),
-            subtask=np.zeros(count, int),
-            completed=np.zeros(count, int),
-            switched=np.zeros(count, bool),
-            novelty_subtask=np.zeros(count, int),
-            since_switch=np.zeros(count, int),
-        )
-
-
 class RewardScorer:
     """The learned reward for N environments at once, with per-environment subtask trackers and
     per-subtask novelty memories shared by all of them.
@@ -179,42 +154,39 @@ class RewardScorer:
         if len(rounds) != len(envs) or np.any(np.diff(rounds) < 0):
             raise ValueError("rounds must give every frame its round, in ascending order")
         ends = np.zeros(len(envs), bool) if episode_ends is None else np.asarray(episode_ends, dtype=bool)
-        step = self.track(per_subtask, envs, ends)
-        intrinsic = self.intrinsic_bonus(embeddings, states, step.novelty_subtask, step.since_switch, rounds)
-        return self.parts(step, embeddings, intrinsic)
-
-    def track(self, per_subtask: np.ndarray, envs: np.ndarray, episode_ends: np.ndarray) -> TrackedStep:
-        """The trackers of `envs` (row i: envs[i]) take their frames in order; everything but the novelty."""
-        step = TrackedStep.empty(len(envs))
+        count = len(envs)
+        distance, bonus, subtask, completed = (
+            np.zeros(count),
+            np.zeros(count),
+            np.zeros(count, int),
+            np.zeros(count, int),
+        )
+        switched = np.zeros(count, bool)
+        novelty_subtask, since_switch = np.zeros(count, int), np.zeros(count, int)
         for row, (env, rewards) in enumerate(zip(envs, per_subtask, strict=True)):
             tracker = self.trackers[env]
-            step.novelty_subtask[row] = tracker.current  # novelty is judged within the subtask the frame was taken in
-            step.since_switch[row] = self.steps_since_switch[env]
+            novelty_subtask[row] = tracker.current  # novelty is judged within the subtask the frame was taken in
+            since_switch[row] = self.steps_since_switch[env]
             was_done = tracker.done
             reward_now = rewards[tracker.current]
-            step.switched[row] = tracker.update(reward_now)
+            switched[row] = tracker.update(reward_now)
             if self.variant == "inest":
-                step.distance[row] = 0.0 if was_done else reward_now
-                step.bonus[row] = tracker.completed * self.model.shaping.subtask_bonus
+                distance[row] = 0.0 if was_done else reward_now
+                bonus[row] = tracker.completed * self.model.shaping.subtask_bonus
             else:
-                step.distance[row] = rewards[-1]
-            step.subtask[row], step.completed[row] = tracker.current, tracker.completed
-            if step.switched[row]:
+                distance[row] = rewards[-1]
+            subtask[row], completed[row] = tracker.current, tracker.completed
+            if switched[row]:
                 self.steps_since_switch[env] = 0
             elif self.steps_since_switch[env] >= 0:
                 self.steps_since_switch[env] += 1
-            if episode_ends[row]:
+            if ends[row]:
                 self.reset(env)
-        return step
-
-    def parts(self, step: TrackedStep, embeddings: np.ndarray, intrinsic: np.ndarray) -> RewardParts:
-        distance = step.distance
         if self.variant == "xirl":
             distance = -self.goals.distance_scale * np.linalg.norm(embeddings - self.goals.goals[-1], axis=1)
-        total = distance + step.bonus + intrinsic
-        return RewardParts(
-            total, distance, step.bonus, intrinsic, step.subtask, step.completed, step.switched, embeddings
-        )
+        intrinsic = self.intrinsic_bonus(embeddings, states, novelty_subtask, since_switch, rounds)
+        total = distance + bonus + intrinsic
+        return RewardParts(total, distance, bonus, intrinsic, subtask, completed, switched, embeddings)
 
     def intrinsic_bonus(
         self,

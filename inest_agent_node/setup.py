@@ -24,6 +24,7 @@ setup(
         "console_scripts": [
             "inest-agent-node = inest_agent_node.node:main",
             "inest-train = inest_agent_node.train:main",
+            "inest-summarise = inest_agent_node.summary:main",
         ],
     },
 )

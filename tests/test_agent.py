@@ -7,9 +7,10 @@ import json
 
 import numpy as np
 import pytest
-from inest_agent_node.envs import LearnedRewardVecEnv, make_vec_env
+from inest_agent_node.envs import LEARNED_STAGE, LearnedRewardVecEnv, make_vec_env
 from inest_agent_node.evaluate import evaluate, format_table
-from inest_agent_node.train import RewardBatchingSAC, Trainer
+from inest_agent_node.learners import RewardBatchingMixin
+from inest_agent_node.train import Trainer
 from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.model import load_model
 from inest_reward_node.rewards import RewardScorer
@@ -80,18 +81,19 @@ def test_scoring_several_steps_at_once_gives_the_rewards_of_scoring_every_step(t
         assert np.isnan(rewards).all()  # not known yet: nothing may train on it
     taken = batched.take_rewards(100)
     assert len(taken) == 24 and len(batched.waiting) == 1  # eight full batches of 3, one step waiting
-    assert "learned_subtask" not in infos[0]
+    assert LEARNED_STAGE not in infos[0]
     batched.score_waiting()
     taken += batched.take_rewards(100)
-    assert infos[0]["learned_subtask"] == every_step.scorer.trackers[0].current
+    assert infos[0][LEARNED_STAGE] == every_step.scorer.trackers[0].completed
     np.testing.assert_allclose(np.array(taken), np.array(expected), rtol=1e-4, atol=1e-5)
     for ours, reference in zip(batched.scorer.memories, every_step.scorer.memories, strict=True):
         np.testing.assert_allclose(ours.contents(), reference.contents(), rtol=1e-4, atol=1e-5)
 
 
-def tiny_config(total_steps: int) -> TrainConfig:
+def tiny_config(total_steps: int, observation: str = "stage") -> TrainConfig:
     return TrainConfig(
         reward="env",
+        observation=observation,
         intrinsic=IntrinsicConfig(mode="none"),
         num_envs=2,
         total_steps=total_steps,
@@ -138,6 +140,7 @@ def test_resumed_inest_run_keeps_its_exploration_memories(tiny_tcc_run, tmp_path
         reward="inest",
         model=str(reward_run / "model"),
         num_envs=2,
+        observation="state",  # the stage observation needs every step's reward at once
         reward_batch_steps=3,  # 100 vector steps: the checkpoint must store a transition still waiting
         total_steps=200,
         eval_every=200,
@@ -148,16 +151,18 @@ def test_resumed_inest_run_keeps_its_exploration_memories(tiny_tcc_run, tmp_path
     )
     first = Trainer(config, tmp_path / "run", progress_bar=False)
     first.train()
-    assert isinstance(first.model, RewardBatchingSAC) and not first.model.held_transitions
-    sizes = [len(memory) for memory in first.env.scorer.memories]
+    assert isinstance(first.model, RewardBatchingMixin) and not first.model.held_transitions
+    sizes = [len(memory) for memory in first.learned_env.scorer.memories]
     assert sum(sizes) == 200  # every frame of both environments went into a subtask memory
     results = json.loads((tmp_path / "run" / "results.json").read_text())
     assert results["coverage"]["samples"] == 20  # every 10th vector step of 2 environments
     assert (tmp_path / "run" / "coverage.png").exists()
     resumed = Trainer(dataclasses.replace(config, total_steps=300), tmp_path / "run", resume=True, progress_bar=False)
-    assert [len(memory) for memory in resumed.env.scorer.memories] == sizes
+    assert [len(memory) for memory in resumed.learned_env.scorer.memories] == sizes
     assert resumed.model.replay_buffer.size() == 100  # every transition, none left waiting
-    np.testing.assert_array_equal(resumed.env.scorer.memories[0].contents(), first.env.scorer.memories[0].contents())
+    np.testing.assert_array_equal(
+        resumed.learned_env.scorer.memories[0].contents(), first.learned_env.scorer.memories[0].contents()
+    )
 
 
 def test_held_transitions_reach_the_buffer_as_sac_would_store_them(tiny_tcc_run, tmp_path):
@@ -168,6 +173,7 @@ def test_held_transitions_reach_the_buffer_as_sac_would_store_them(tiny_tcc_run,
             reward="inest",
             model=str(reward_run / "model"),
             num_envs=2,
+            observation="state",
             reward_batch_steps=batch_steps,
             sac=SacConfig(learning_starts=1000, buffer_size=1000, batch_size=16, net_arch=(16, 16)),
         )
@@ -220,11 +226,12 @@ class UpdatesWhileStepping(VecEnvWrapper):
 
 
 def test_overlapped_updates_run_as_many_updates_on_the_same_transitions(tmp_path):
-    config = tiny_config(300)
+    config = tiny_config(300, observation="state")
     plain = Trainer(config, tmp_path / "plain", progress_bar=False)
-    env = UpdatesWhileStepping(make_vec_env(config.num_envs, EnvConfig(), config.seed))
+    env = UpdatesWhileStepping(make_vec_env(config.num_envs, EnvConfig(reward=config.oracle), config.seed))
     overlapped = Trainer(config, tmp_path / "overlapped", progress_bar=False, env=env, overlap_updates=True)
     env.model = overlapped.model
+    env.while_waiting = overlapped.model.run_pending_updates
     plain.train()
     overlapped.train()
     assert overlapped.model._n_updates == plain.model._n_updates > 0

@@ -9,6 +9,7 @@ from inest_reward_node.calibrate import (
     calibrate_thresholds,
     goal_embeddings,
     highest_held,
+    start_distances,
     subtask_starts,
     subtask_windows,
     xirl_distance_scale,
@@ -29,6 +30,15 @@ def test_goal_embeddings_average_the_frames_where_subtasks_end():
 def test_xirl_scale_is_one_over_the_mean_start_to_goal_distance():
     demos = [np.array([[3.0, 4.0], [0.0, 0.0]]), np.array([[0.0, 1.0], [0.0, 0.0]])]
     assert xirl_distance_scale(demos, np.zeros(2)) == pytest.approx(1 / 3.0)
+
+
+def test_start_distances_are_the_mean_distance_to_each_goal_where_its_subtask_starts():
+    first = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]])  # subtasks end on frames 1 and 3
+    second = np.array([[0.0, 2.0], [1.0, 0.0], [3.0, 0.0]])  # ... and on frames 0 and 2
+    goals = np.array([[1.0, 0.0], [3.0, 0.0]])
+    starts = start_distances([first, second], [np.array([1, 3]), np.array([0, 2])], goals)
+    # subtask 0 starts on frame 0 (distances 1 and sqrt 5), subtask 1 on frames 2 and 1 (distances 1 and 2)
+    assert starts == pytest.approx([(1 + np.sqrt(5)) / 2, 1.5])
 
 
 def test_windows_are_the_last_hold_frames_of_each_subtask():

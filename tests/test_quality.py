@@ -16,23 +16,71 @@ def test_report_end_to_end(tiny_tcc_run, tmp_path):
     config, run_dir = tiny_tcc_run
     out = tmp_path / "quality"
     run = subprocess.run(
-        [Path(sys.executable).parent / "inest-reward-quality", run_dir / "model", config.dataset, "--out", out],
+        [
+            Path(sys.executable).parent / "inest-reward-quality",
+            run_dir / "model",
+            config.dataset,
+            "--out",
+            out,
+            "--negative-episodes",
+            "2",
+        ],
         capture_output=True,
         text=True,
         check=False,
     )
     assert run.returncode == 0, run.stderr
-    assert "spearman(progress)" in run.stdout
+    assert "spearman(progress, total incl. bonus)" in run.stdout
+    assert "shaping rho" in run.stdout and "false rand" in run.stdout
     report = json.loads((out / "report.json").read_text())
     assert report["model"]["view"] == "ego"
     assert set(report["schemes"]) == {"1", "3", "6"}
     assert [report["schemes"][s]["variant"] for s in ("1", "3", "6")] == ["xirl", "inest", "inest"]
-    for row in report["schemes"].values():
+    assert report["scorer_options"] == {}
+    for kind in ("random", "wrong_order"):
+        assert report["negatives"][kind]["episodes"] == 2
+    assert report["negatives"]["random"]["first_seed"] == 41_000_000
+    assert report["negatives"]["wrong_order"]["first_seed"] == 41_500_000
+    assert report["negatives"]["wrong_order"]["true_progress_max"] <= 1  # blue first: the env counts red at most
+    for scheme, row in report["schemes"].items():
         assert row["demos"] == 2
-        assert -1.0 <= row["spearman_progress"]["median"] <= 1.0
+        assert row["scorer"]["variant"] == row["variant"]
+        total = row["spearman_progress_total_incl_bonus"]
+        assert -1.0 <= total["median"] <= 1.0
+        assert row["spearman_progress"] == total  # the old key still reads the same numbers
         assert 0.0 <= row["tracker_pass_rate"] <= 1.0
         assert 0.0 <= row["reward_vs_env"]["mse"] <= 1.0
         assert (out / row["plot"]).stat().st_size > 5000
+        assert [sub["subtask"] for sub in row["per_subtask"]] == list(range(int(scheme)))
+        for sub in row["per_subtask"]:
+            for key in ("spearman_shaping_within", "spearman_embedding_within"):
+                assert set(sub[key]) == {"median", "mean", "demos"}
+                assert sub[key]["median"] is None or -1.0 <= sub[key]["median"] <= 1.0
+            assert set(sub["switch_dip"]) == {"median", "min", "switches"}
+            assert set(sub["completion_lag_frames"]) == {"median", "mean", "completed"}
+            assert sub["completion_lag_frames"]["completed"] == round(2 * (1 - sub["miss_rate"]))
+            assert set(sub["false_completion_rate"]) == {"random", "wrong_order"}
+            assert all(0.0 <= rate <= 1.0 for rate in sub["false_completion_rate"].values())
+        assert set(row["false_completion_any"]) == {"random", "wrong_order"}
+
+
+def test_report_refuses_scorer_options_the_scorer_does_not_take(tiny_tcc_run, tmp_path):
+    config, run_dir = tiny_tcc_run
+    run = subprocess.run(
+        [
+            Path(sys.executable).parent / "inest-reward-quality",
+            run_dir / "model",
+            config.dataset,
+            "--out",
+            tmp_path,
+            "--scorer-option",
+            "no_such_option=1",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert run.returncode == 2 and "no_such_option" in run.stderr, run.stderr
 
 
 def test_report_refuses_a_scheme_the_model_lacks(tiny_tcc_run, tmp_path):

@@ -1,4 +1,4 @@
-"""Training configuration, one typed place, loadable from YAML (`configs/train.yaml`)."""
+"""Training configuration, one typed place, loadable from YAML (`config/train.yaml`)."""
 
 from __future__ import annotations
 
@@ -9,15 +9,23 @@ from typing import Any
 import yaml
 from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.runs import merge_settings
+from inest_reward_node.stages import RewardConfig
+from inest_sim_node.config import ORACLE_REWARDS
+from inest_sim_node.observation import STATE_OBSERVATIONS
+from inest_sim_node.scoring import NUM_BLOCKS
+
+from .learners import LEARNERS
+
+LEARNER_NAMES = tuple(LEARNERS)
 
 REWARDS = ("env", "xirl", "holdr", "inest", "topic")  # topic: served by inest_reward_node (graph only)
 
 
 @dataclass(frozen=True)
 class SacConfig:
-    """stable-baselines3 SAC. From SB3/the SAC paper: learning rate, batch, tau, gamma, network,
-    automatic entropy. Changed for CPU speed: one gradient step per vector step of `num_envs`
-    environments (SAC's default is one per environment step), as the platform facts measured."""
+    """SAC settings (any learner of learners.py). From SB3/the SAC paper: learning rate, batch,
+    tau, gamma, network, automatic entropy. Changed for CPU speed: 2 gradient steps per vector
+    step of `num_envs` = 4 environments (SAC's default is one per environment step)."""
 
     learning_rate: float = 3e-4
     buffer_size: int = 1_000_000
@@ -26,7 +34,7 @@ class SacConfig:
     tau: float = 0.005
     gamma: float = 0.99
     train_freq: int = 1  # vector steps between updates
-    gradient_steps: int = 1
+    gradient_steps: int = 2  # per update: 2 per vector step of 4 environments, a replay ratio of 0.5
     net_arch: tuple[int, ...] = (256, 256)
     ent_coef: str = "auto"
 
@@ -38,9 +46,18 @@ class TrainConfig:
     subtasks: int = 3  # inest: 1, 3 or 6
     view: str = "ego"
     intrinsic: IntrinsicConfig = field(default_factory=IntrinsicConfig)
+    # how the learned reward shapes and tracks subtasks (stages.RewardConfig: shaping, tracker,
+    # stage_source "privileged" for the true-stage diagnostic, intrinsic_cap)
+    learned_reward: RewardConfig = field(default_factory=RewardConfig)
+    # stage: the state plus the reward's stage one-hot and the stage block's offsets (Markov in the
+    # staged reward; observation.py); state: the bare 21-entry state (the ablation)
+    observation: str = "stage"
+    oracle: str = "approach"  # the simulator's reward (reward env): progress | approach (+ reach and hold)
+    learner: str = "sbx_sac"  # learners.LEARNERS: sac | sbx_sac | crossq | sbx_crossq | sbx_droq
     num_envs: int = 4
-    # vector steps whose frames are scored in one encoder pass (speed only; see envs.LearnedRewardVecEnv)
-    reward_batch_steps: int = 4
+    # vector steps whose frames are scored in one encoder pass (speed only; see envs.LearnedRewardVecEnv);
+    # the stage observation needs each step's stage at once, so only 1 goes with it
+    reward_batch_steps: int = 1
     total_steps: int = 200_000
     eval_every: int = 10_000
     eval_episodes: int = 50
@@ -57,6 +74,18 @@ class TrainConfig:
             raise ValueError(f"the {self.reward} reward needs a reward model folder (model)")
         if self.reward != "inest" and self.intrinsic.mode != "none":
             raise ValueError(f"the intrinsic bonus belongs to the inest reward, not {self.reward}")
+        if self.observation not in STATE_OBSERVATIONS:
+            raise ValueError(f"unknown observation {self.observation!r}; expected one of {STATE_OBSERVATIONS}")
+        if self.learner not in LEARNER_NAMES:
+            raise ValueError(f"unknown learner {self.learner!r}; expected one of {LEARNER_NAMES}")
+        if self.oracle not in ORACLE_REWARDS:
+            raise ValueError(f"unknown oracle {self.oracle!r}; expected one of {ORACLE_REWARDS}")
+        if self.observation == "stage" and self.reward_batch_steps != 1:
+            raise ValueError(
+                "the stage observation needs every step's stage before the next action: "
+                f"set reward_batch_steps to 1 (got {self.reward_batch_steps}) or observation to 'state'"
+            )
+
         for name in (
             "num_envs",
             "reward_batch_steps",
@@ -67,6 +96,14 @@ class TrainConfig:
         ):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+
+    @property
+    def stage_subtasks(self) -> int:
+        """Stages the policy's observation distinguishes: the simulator's blocks for the oracle,
+        the learned reward's subtasks otherwise (XIRL and HOLD-R have one goal)."""
+        if self.reward == "env":
+            return NUM_BLOCKS
+        return self.subtasks if self.reward in ("inest", "topic") else 1
 
     def to_dict(self) -> dict[str, Any]:
         data = asdict(self)
@@ -84,6 +121,8 @@ class TrainConfig:
             values["intrinsic"] = IntrinsicConfig(mode="none")  # the bonus belongs to the inest reward
         if isinstance(values.get("intrinsic"), dict):
             values["intrinsic"] = IntrinsicConfig(**values["intrinsic"])
+        if isinstance(values.get("learned_reward"), dict):
+            values["learned_reward"] = RewardConfig(**values["learned_reward"])
         if isinstance(values.get("sac"), dict):
             sac = dict(values["sac"])
             if "net_arch" in sac:

@@ -1,8 +1,11 @@
-"""Vectorised training environments whose reward comes from a learned reward model.
+"""Vectorised training environments whose reward comes from a learned reward model, and the
+policy's stage observation on top of any vector env.
 
-The policy sees the state vector; the reward is computed from each environment's camera
-frame after the step (the transition's next frame, including the last frame of an episode,
-which auto-reset would otherwise replace), all N frames in one encoder forward pass.
+The reward is computed from each environment's camera frame after the step (the transition's
+next frame, including the last frame of an episode, which auto-reset would otherwise replace),
+all N frames in one encoder forward pass. Every step's infos carry the same keys whoever
+computed the reward (these envs or the graph's): TRUE_PROGRESS, and for learned rewards
+LEARNED_STAGE and the reward's parts (SHAPING, BONUS, INTRINSIC).
 """
 
 from __future__ import annotations
@@ -13,13 +16,20 @@ from typing import Any
 
 import gymnasium
 import numpy as np
-from inest_reward_node.intrinsic import NoveltyMemory
+from inest_reward_node.intrinsic import IntrinsicConfig, NoveltyMemory
+from inest_reward_node.model import load_model
 from inest_reward_node.rewards import RewardScorer
+from inest_sim_node.observation import stage_observation, stage_observation_space
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
 
 from inest_sim_node import EnvConfig, SweepToTopEnv
 
+from .config import TrainConfig
+
 FRAME_KEY = "camera_frame"
+TRUE_PROGRESS = "progress"  # blocks placed in order (the simulator's, 0..3)
+LEARNED_STAGE = "learned_stage"  # subtasks the learned reward counts as done (0..num_subtasks)
+SHAPING, BONUS, INTRINSIC = "shaping_reward", "subtask_bonus", "intrinsic_reward"
 
 
 class CameraFrameInInfo(gymnasium.Wrapper):
@@ -66,7 +76,7 @@ class LearnedRewardVecEnv(VecEnvWrapper):
     (RewardScorer.score_embeddings with rounds). step() then returns NaN rewards (a reward that
     is not known yet must not be trained on) and the learned ones come out of take_rewards() in
     step order, for an algorithm that holds each transition until its reward is known
-    (train.RewardBatchingSAC). The subtask and intrinsic entries of a step's infos are filled
+    (learners.RewardBatchingMixin). The subtask and intrinsic entries of a step's infos are filled
     in when it is scored.
     """
 
@@ -136,11 +146,81 @@ class LearnedRewardVecEnv(VecEnvWrapper):
                 self.visited.append(parts.embeddings)
             self.steps += 1
             for index, info in enumerate(step.infos):
-                info["learned_subtask"] = int(parts.subtask[index])
-                info["intrinsic_reward"] = float(parts.intrinsic[index])
+                info[LEARNED_STAGE] = int(parts.completed[index])
+                info[SHAPING], info[BONUS] = float(parts.distance[index]), float(parts.bonus[index])
+                info[INTRINSIC] = float(parts.intrinsic[index])
             self.scored.append(parts.total.astype(np.float32))
         self.waiting.clear()
 
     def take_rewards(self, at_most: int) -> list[np.ndarray]:
         """Up to `at_most` learned rewards not taken yet, one (N,) array per vector step, oldest first."""
         return [self.scored.popleft() for _ in range(min(at_most, len(self.scored)))]
+
+
+class StageObservationVecEnv(VecEnvWrapper):
+    """Appends the reward's stage (one-hot of `infos[stage_key]`) and the stage block's offsets
+    in the robot frame to every state observation (observation.stage_observation).
+
+    A stage is known only once the step's reward is: the wrapped env must fill `stage_key` in
+    every step's infos (a LearnedRewardVecEnv scoring each step as it happens, the graph's
+    rewards, or the simulator's true progress for the oracle). Episodes start in stage 0.
+    """
+
+    def __init__(self, venv: VecEnv, num_subtasks: int, stage_key: str) -> None:
+        super().__init__(venv, observation_space=stage_observation_space(venv.observation_space, num_subtasks))
+        self.num_subtasks, self.stage_key = num_subtasks, stage_key
+
+    def reset(self) -> np.ndarray:
+        observations = self.venv.reset()
+        return stage_observation(observations, np.zeros(len(observations), int), self.num_subtasks)
+
+    def step_wait(self):
+        observations, rewards, dones, infos = self.venv.step_wait()
+        if self.stage_key not in infos[0]:
+            raise RuntimeError(
+                f"the stage observation needs infos[{self.stage_key!r}] after every step "
+                "(a learned reward scored several steps at once has none yet: use reward_batch_steps 1)"
+            )
+        stages = np.array([info[self.stage_key] for info in infos], dtype=int)
+        for index in np.flatnonzero(dones):
+            terminal = infos[index]["terminal_observation"]
+            infos[index]["terminal_observation"] = stage_observation(terminal, stages[index], self.num_subtasks)[0]
+            stages[index] = 0  # the observation returned is the next episode's first
+        return stage_observation(observations, stages, self.num_subtasks), rewards, dones, infos
+
+
+def build_env(
+    config: TrainConfig, num_envs: int | None = None, seed: int | None = None, evaluation: bool = False
+) -> VecEnv:
+    """The vector env `config` trains on: in-process simulators, the learned reward, the stage
+    observation. `evaluation`: the same observation path, without the intrinsic bonus (its
+    memories belong to training) and with the reward node's model for the topic reward."""
+    num_envs = num_envs or config.num_envs
+    seed = config.seed if seed is None else seed
+    env_config = EnvConfig(view=config.view, reward=config.oracle)
+    reward = config.reward
+    if reward == "topic":
+        if not evaluation:
+            raise ValueError("the topic reward comes from inest_reward_node: train over the graph (inest-agent-node)")
+        if config.observation == "stage" and not config.model:
+            raise ValueError(
+                "the stage observation over the graph needs `model` (the reward node's model), "
+                "so that in-process evaluations track the stage as the reward node does"
+            )
+        reward = "inest" if config.subtasks > 1 else "xirl"
+    if reward == "env" or (evaluation and config.observation == "state"):
+        venv = make_vec_env(num_envs, env_config, seed)
+        return with_observation(venv, config, TRUE_PROGRESS)
+    scheme = config.subtasks if reward == "inest" else 1
+    model = load_model(config.model, view=config.view, scheme=scheme)
+    intrinsic = IntrinsicConfig(mode="none") if evaluation else config.intrinsic
+    scorer = RewardScorer(model, scheme, reward, intrinsic, num_envs, config=config.learned_reward)
+    venv = make_vec_env(num_envs, env_config, seed, (config.view, model.image_size))
+    batch_steps = 1 if evaluation else config.reward_batch_steps
+    return with_observation(LearnedRewardVecEnv(venv, scorer, batch_steps=batch_steps), config, LEARNED_STAGE)
+
+
+def with_observation(venv: VecEnv, config: TrainConfig, stage_key: str) -> VecEnv:
+    if config.observation == "state":
+        return venv
+    return StageObservationVecEnv(venv, config.stage_subtasks, stage_key)

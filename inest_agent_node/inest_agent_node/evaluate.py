@@ -9,11 +9,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from inest_sim_node.scoring import NUM_BLOCKS
+from stable_baselines3.common.vec_env import VecEnv
 
 from inest_sim_node import EnvConfig, SweepToTopEnv
 
 EVAL_SEED_OFFSET = 10_000_000  # evaluation layouts never overlap training or demonstration seeds
-NUM_BLOCKS = 3
 
 Policy = Callable[[np.ndarray, SweepToTopEnv], np.ndarray]
 
@@ -55,6 +56,27 @@ def evaluate(policy: Policy, episodes: int = 150, env_config: EnvConfig | None =
             done = terminated or truncated
         scores.append(float(info["score"]))
     env.close()
+    return EvalResult.from_scores(scores)
+
+
+def evaluate_vec_env(
+    env: VecEnv, predict: Callable[[np.ndarray], np.ndarray], episodes: int, seed: int = 0
+) -> EvalResult:
+    """`episodes` episodes of `predict(observations) -> actions` on the evaluation layouts, N at a time
+    (environment i of a batch on the next seed + i), through whatever observation path `env` has:
+    in process or over the graph. Episodes are truncated at a fixed length, so a batch ends together."""
+    scores: list[float] = []
+    while len(scores) < episodes:
+        count = min(env.num_envs, episodes - len(scores))
+        env.seed(EVAL_SEED_OFFSET + seed + len(scores))
+        observations = env.reset()
+        finished: dict[int, float] = {}
+        while len(finished) < count:
+            observations, _, dones, infos = env.step(predict(observations))
+            for index in range(count):
+                if dones[index] and index not in finished:
+                    finished[index] = float(infos[index]["score"])
+        scores += [finished[index] for index in range(count)]
     return EvalResult.from_scores(scores)
 
 

@@ -18,6 +18,7 @@ import numpy as np
 from inest_interfaces.msg import Action, EpisodeStatus, Reward, State
 from inest_interfaces.srv import ResetEpisode
 from inest_sim_node.rosutil import namespaced, ns_stamp, stamp_ns
+from inest_sim_node.scoring import NUM_BLOCKS
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -26,6 +27,7 @@ from std_srvs.srv import Trigger
 
 from inest_sim_node import SweepToTopEnv
 
+from .envs import BONUS, INTRINSIC, LEARNED_STAGE, SHAPING, TRUE_PROGRESS
 from .pairing import REWARD, STATE, STATUS, StepMailbox
 
 
@@ -144,11 +146,16 @@ class GraphVecEnv(VecEnv):
             new_stamp, messages = results[index]
             status = messages[STATUS]
             observation = np.asarray(messages[STATE].values, dtype=np.float32)
-            info: dict[str, Any] = {"env_reward": status.env_reward, "score": status.score}
+            info: dict[str, Any] = {
+                "env_reward": status.env_reward,
+                "score": status.score,
+                TRUE_PROGRESS: round(status.score * NUM_BLOCKS),
+            }
             if self.learned_reward:
                 reward = messages[REWARD]
                 rewards[index] = reward.total
-                info["learned_subtask"], info["intrinsic_reward"] = reward.subtask, reward.intrinsic_bonus
+                info[LEARNED_STAGE], info[INTRINSIC] = reward.subtask, reward.intrinsic_bonus
+                info[SHAPING], info[BONUS] = reward.distance_reward, reward.subtask_bonus
             else:
                 rewards[index] = status.env_reward
             self.stamps[index] = new_stamp

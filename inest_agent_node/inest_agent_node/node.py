@@ -8,7 +8,7 @@ Parameters: every training setting of config.py (`reward`, `total_steps`, `sac.b
 - `resume`: continue the run in `out` from its last checkpoint
 - `step_timeout`: seconds of silence before a topic is reported (the node keeps waiting)
 - `overlap_updates`: run each SAC update while the simulators take the next step (default on;
-  the action then comes from a policy one update older, see train.OverlappedSAC)
+  the action then comes from a policy one update older, see learners.OverlappedUpdatesMixin)
 - `episodes`, `policy`: evaluate mode, N episodes of a saved policy (default: `out`'s checkpoint)
 Periodic evaluations during training run on an in-process copy of the simulator.
 """
@@ -22,12 +22,13 @@ from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.model import ModelError
 from inest_sim_node.rosutil import declare_dataclass, run_node
 from rclpy.node import Node
-from stable_baselines3 import SAC
 
 from .config import TrainConfig
-from .evaluate import EVAL_SEED_OFFSET, EvalResult, format_table
+from .envs import LEARNED_STAGE, TRUE_PROGRESS, with_observation
+from .evaluate import evaluate_vec_env, format_table
 from .graph_env import GraphVecEnv
-from .train import CHECKPOINT_DIR, RESULTS_FILE, Trainer
+from .learners import learner_class
+from .train import CHECKPOINT_DIR, RESULTS_FILE, Trainer, deterministic
 
 MODES = ("train", "evaluate")
 
@@ -41,29 +42,11 @@ class AgentNodeConfig:
     step_timeout: float = 5.0
     episodes: int = 150
     policy: str = ""  # evaluate: a saved SAC model.zip; empty: `out`/checkpoint/model.zip
-    overlap_updates: bool = True  # update while the simulators step (train.OverlappedSAC)
+    overlap_updates: bool = True  # update while the simulators step (learners.OverlappedUpdatesMixin)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"unknown mode {self.mode!r}; expected one of {MODES}")
-
-
-def evaluate_over_graph(env: GraphVecEnv, model: SAC, episodes: int, seed: int = 0) -> EvalResult:
-    """`episodes` deterministic episodes on the evaluation layouts, run N at a time."""
-    scores: list[float] = []
-    while len(scores) < episodes:
-        count = min(env.num_envs, episodes - len(scores))
-        env.seed(EVAL_SEED_OFFSET + seed + len(scores))  # environment i: the next seed + i
-        observations = env.reset()
-        finished: dict[int, float] = {}
-        while len(finished) < count:
-            actions, _ = model.predict(observations, deterministic=True)
-            observations, _, dones, infos = env.step(actions)
-            for index in range(count):
-                if dones[index] and index not in finished:
-                    finished[index] = infos[index]["score"]
-        scores += [finished[index] for index in range(count)]
-    return EvalResult.from_scores(scores)
 
 
 class AgentNode(Node):
@@ -78,15 +61,18 @@ class AgentNode(Node):
 
     def run(self) -> None:
         settings, config = self.settings, self.train_config
-        env = GraphVecEnv(self, list(settings.namespaces), config.reward == "topic", settings.step_timeout)
+        graph = GraphVecEnv(self, list(settings.namespaces), config.reward == "topic", settings.step_timeout)
+        env = with_observation(graph, config, LEARNED_STAGE if graph.learned_reward else TRUE_PROGRESS)
         try:
             if settings.mode == "evaluate":
                 policy = settings.policy or str(Path(settings.out) / CHECKPOINT_DIR / "model.zip")
-                model = SAC.load(policy, env=env)
-                result = evaluate_over_graph(env, model, settings.episodes, config.seed)
+                model = learner_class(config.learner).load(policy, env=env)
+                result = evaluate_vec_env(env, deterministic(model), settings.episodes, config.seed)
                 print(format_table({f"{Path(policy).name} over the graph": result}), flush=True)
                 return
             trainer = Trainer(config, settings.out, settings.resume, env=env, overlap_updates=settings.overlap_updates)
+            if settings.overlap_updates:
+                graph.while_waiting = trainer.model.run_pending_updates  # the update runs while the simulators step
             result = trainer.train()
             print(format_table({f"{config.reward} ({trainer.model.num_timesteps} steps)": result}), flush=True)
             self.get_logger().info(f"wrote {Path(settings.out) / RESULTS_FILE}")

@@ -1,12 +1,15 @@
-"""Goal embeddings, XIRL distance scale and subtask-completion thresholds from training demonstrations."""
+"""Goal embeddings, XIRL distance scale, subtask-completion thresholds and per-subtask start distances
+from training demonstrations (the stage classifier is fitted next to them, see stages.py)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
+
+from .stages import StageClassifierConfig
 
 
 @dataclass(frozen=True)
@@ -22,19 +25,28 @@ class CalibrationConfig:
     goal. So the threshold is then raised, where needed, until at most `false_fire_rate` of
     `random_episodes` random-policy episodes would complete the subtask on frames where it is
     not really complete (negatives) — but never so far that fewer than `demo_pass_rate` of the
-    demonstrations would complete it before `late_frames` frames after its end."""
+    demonstrations would complete it before `late_frames` frames after its end.
+
+    The stage classifier (stages.py) is fitted on the demonstrations, the same random-policy
+    episodes and `wrong_order_episodes` episodes of the scripted expert placing the blocks in a
+    wrong order (inest_sim_node.expert.ScriptedExpert(order=...)), every frame labelled with the
+    simulator's true ordered progress. The thresholds use random play only, as before."""
 
     percentile: float = 2.0
     random_episodes: int = 50  # 0: demonstrations only
     false_fire_rate: float = 0.1
     demo_pass_rate: float = 0.98
     late_frames: int = 10
+    wrong_order_episodes: int = 20  # for the stage classifier only; 0: none
+    classifier: StageClassifierConfig = field(default_factory=StageClassifierConfig)
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.percentile <= 100.0:
             raise ValueError(f"percentile must be in [0, 100], got {self.percentile}")
         if self.random_episodes < 0 or not 0.0 <= self.false_fire_rate <= 1.0 or not 0.0 < self.demo_pass_rate <= 1.0:
             raise ValueError("random_episodes must be >= 0, false_fire_rate in [0, 1], demo_pass_rate in (0, 1]")
+        if self.wrong_order_episodes < 0:
+            raise ValueError(f"wrong_order_episodes must be >= 0, got {self.wrong_order_episodes}")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -54,6 +66,28 @@ def xirl_distance_scale(embeddings: Sequence[np.ndarray], final_goal: np.ndarray
 def subtask_starts(ends: np.ndarray) -> np.ndarray:
     """First frame of each subtask: frame 0, then the frame after the previous subtask ended."""
     return np.concatenate([[0], np.asarray(ends[:-1]) + 1])
+
+
+def start_frames(embeddings: Sequence[np.ndarray], ends: Sequence[np.ndarray], subtask: int) -> np.ndarray:
+    """(demos, D): each demonstration's embedding on the frame where `subtask` starts (its last frame
+    if the start lies past it)."""
+    return np.stack(
+        [emb[min(int(subtask_starts(end)[subtask]), len(emb) - 1)] for emb, end in zip(embeddings, ends, strict=True)]
+    )
+
+
+def start_embeddings(embeddings: Sequence[np.ndarray], ends: Sequence[np.ndarray]) -> np.ndarray:
+    """(subtasks, D): the mean embedding of the frames where each subtask starts (segment shaping's 0)."""
+    return np.stack([start_frames(embeddings, ends, k).mean(axis=0) for k in range(len(ends[0]))])
+
+
+def start_distances(embeddings: Sequence[np.ndarray], ends: Sequence[np.ndarray], goals: np.ndarray) -> list[float]:
+    """d_k_start: per subtask k, the mean raw distance to goal k on the frame where subtask k starts
+    (progress shaping's zero point). A start past a demonstration's last frame uses its last frame."""
+    return [
+        float(max(np.linalg.norm(start_frames(embeddings, ends, subtask) - goal, axis=1).mean(), 1e-8))
+        for subtask, goal in enumerate(goals)
+    ]
 
 
 def subtask_windows(ends: np.ndarray, hold_steps: int) -> list[slice]:

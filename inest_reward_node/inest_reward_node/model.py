@@ -2,8 +2,12 @@
 
 A model folder holds `weights.safetensors` (tensors only, nothing executable) and
 `model.json`: method, encoder config, input size, camera view, hash of the training
-dataset, and per subtask scheme the goal embeddings, XIRL distance scale and completion
-thresholds. Loading checks the caller's expectations (view, size, scheme) against it.
+dataset, and per subtask scheme the goal embeddings, XIRL distance scale, completion
+thresholds, the raw distance to each goal where its subtask starts (`start_distances`, for
+progress shaping), the mean embedding where each subtask starts (`start_embeddings`, for
+segment shaping and reopening) and the stage classifier (`stage_classifier`, see stages.py).
+Models calibrated before the last three existed load without them; a reward that needs them
+raises a ModelError naming the fix. Loading checks the caller's expectations (view, size, scheme).
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from torch.fx.experimental.optimization import fuse
 from .encoders import EncoderConfig, build_encoder, frames_to_tensor, resize_frames
 from .holdr import HoldR, HoldRConfig
 from .shaping import ShapingConfig
+from .stages import StageClassifier
 
 MODEL_FORMAT = "inest-reward-model"
 MODEL_FORMAT_VERSION = 1
@@ -45,22 +50,73 @@ def build_network(method: str, encoder: EncoderConfig, holdr: HoldRConfig | None
     raise ValueError(f"unknown method {method!r}; expected one of {METHODS}")
 
 
+RECALIBRATE_HINT = "recalibrate it: `inest-pretrain DATASET --out RUN --resume` (RUN: the run folder holding model/)"
+
+
 @dataclass
 class SubtaskGoals:
     goals: np.ndarray  # (subtasks, D)
     thresholds: list[float]  # on the method's per-frame reward, one per subtask
     distance_scale: float  # XIRL: 1 / mean distance from first frames to the final goal
+    # mean raw distance to goal k on the frame where subtask k starts (training demos); None: an older model
+    start_distances: list[float] | None = None
+    stage_classifier: StageClassifier | None = None  # P(true stage | embedding); None: an older model
+    start_embeddings: np.ndarray | None = None  # (subtasks, D) mean embedding where each subtask starts
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        data: dict[str, Any] = {
             "goals": self.goals.tolist(),
             "thresholds": self.thresholds,
             "distance_scale": self.distance_scale,
         }
+        if self.start_distances is not None:
+            data["start_distances"] = self.start_distances
+        if self.start_embeddings is not None:
+            data["start_embeddings"] = np.asarray(self.start_embeddings).tolist()
+        if self.stage_classifier is not None:
+            data["stage_classifier"] = self.stage_classifier.to_dict()
+        return data
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> SubtaskGoals:
-        return cls(np.asarray(data["goals"], dtype=np.float32), list(data["thresholds"]), float(data["distance_scale"]))
+        starts = data.get("start_distances")
+        goals = np.asarray(data["goals"], dtype=np.float32)
+        if starts is None and len(goals) == 1:  # derivable: the XIRL scale is 1 / the same mean distance
+            starts = [1.0 / float(data["distance_scale"])]
+        classifier = data.get("stage_classifier")
+        start_embeddings = data.get("start_embeddings")
+        return cls(
+            goals,
+            list(data["thresholds"]),
+            float(data["distance_scale"]),
+            None if starts is None else [float(value) for value in starts],
+            None if classifier is None else StageClassifier.from_dict(classifier),
+            None if start_embeddings is None else np.asarray(start_embeddings, dtype=np.float32),
+        )
+
+    def require_start_distances(self) -> list[float]:
+        if self.start_distances is None:
+            raise ModelError(
+                f"this model has no per-subtask start distances for its {len(self.goals)}-subtask goals "
+                f"(calibrated before progress shaping existed); {RECALIBRATE_HINT}"
+            )
+        return self.start_distances
+
+    def require_start_embeddings(self) -> np.ndarray:
+        if self.start_embeddings is None:
+            raise ModelError(
+                f"this model has no per-subtask start embeddings for its {len(self.goals)}-subtask goals "
+                f"(calibrated before segment shaping and reopening existed); {RECALIBRATE_HINT}"
+            )
+        return self.start_embeddings
+
+    def require_stage_classifier(self) -> StageClassifier:
+        if self.stage_classifier is None:
+            raise ModelError(
+                f"this model has no stage classifier for its {len(self.goals)}-subtask goals "
+                f"(calibrated before the classifier tracker existed); {RECALIBRATE_HINT}"
+            )
+        return self.stage_classifier
 
 
 class RewardModel:

@@ -6,10 +6,17 @@ image's header), `<stream>/reward/total` (std_msgs/Float32) and `<stream>/reward
 (std_msgs/Int32) for plotting tools; serves `<stream>/reset_reward` (std_srvs/Trigger: new
 episode, tracker reset, exploration memories kept); publishes /diagnostics every second.
 Frames that arrive together are scored in one encoder forward pass.
+
+Parameters: the RewardNodeConfig fields, `intrinsic.*` (IntrinsicConfig) and `reward.*`
+(stages.RewardConfig: shaping, tracker, stage_source, hold_steps, stage_confidence,
+intrinsic_cap; `reward.intrinsic_cap:=.inf` is no cap). `reward.stage_source:=privileged`
+is refused: the node sees images only, not the simulator's progress.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 from dataclasses import dataclass
 
@@ -30,6 +37,7 @@ from .intrinsic import IntrinsicConfig
 from .model import ModelError, load_model
 from .rewards import RewardScorer
 from .serving import ScoredFrame, StreamScorer
+from .stages import RewardConfig
 
 
 @dataclass(frozen=True)
@@ -45,6 +53,21 @@ class RewardNodeConfig:
     threads: int = 1  # torch threads: one keeps batch-1 latency steady when the simulator and agent share the cores
 
 
+def declare_reward_config(node: Node, prefix: str = "reward.") -> RewardConfig:
+    """RewardConfig's fields as ROS parameters; `intrinsic_cap` is a double whose `.inf` means no cap
+    (a None default would be declared as a string)."""
+    defaults = RewardConfig()
+    as_declared = dataclasses.replace(defaults, intrinsic_cap=defaults.cap)
+    values = declare_dataclass(node, as_declared, prefix)
+    cap = float(values["intrinsic_cap"])
+    reward = RewardConfig(**{**values, "intrinsic_cap": None if math.isinf(cap) else cap})
+    if reward.stage_source == "privileged":
+        raise ValueError(
+            "reward.stage_source 'privileged' needs the simulator's progress; the reward node only sees images"
+        )
+    return reward
+
+
 class RewardNode(Node):
     def __init__(self) -> None:
         super().__init__("inest_reward_node")
@@ -52,10 +75,13 @@ class RewardNode(Node):
         intrinsic = IntrinsicConfig(**declare_dataclass(self, IntrinsicConfig(), "intrinsic."))
         if intrinsic.mode == "state":
             raise ValueError("intrinsic.mode 'state' needs state vectors; the reward node only sees images")
+        reward = declare_reward_config(self)
         self.config = config
         torch.set_num_threads(config.threads)
         model = load_model(config.model, scheme=config.subtasks)
-        scorer = RewardScorer(model, config.subtasks, config.variant or None, intrinsic, len(config.streams))
+        scorer = RewardScorer(
+            model, config.subtasks, config.variant or None, intrinsic, len(config.streams), config=reward
+        )
         self.streams = StreamScorer(scorer, config.max_pending)
         qos = QoSProfile(depth=10)
         self.reward_pubs, self.total_pubs, self.subtask_pubs = [], [], []
@@ -76,7 +102,8 @@ class RewardNode(Node):
         self.create_timer(config.diagnostics_period, self.publish_diagnostics)
         self.get_logger().info(
             f"scoring {[namespaced(ns, config.image_topic) for ns in config.streams]} with {config.model} "
-            f"({scorer.variant}, {config.subtasks} subtasks, intrinsic {intrinsic.mode})"
+            f"({scorer.variant}, {config.subtasks} subtasks, intrinsic {intrinsic.mode}, "
+            f"{reward.shaping} shaping, {reward.tracker} tracker)"
         )
 
     def on_image(self, stream: int, msg: Image) -> None:

@@ -2,8 +2,9 @@
 
 `--method tcc` trains the frame encoder with Temporal Cycle-Consistency (INEST-IRL and XIRL
 share it: they differ only in their goal embeddings); `--method holdr` trains the HOLD-R
-baseline. Afterwards the goal embeddings and thresholds for 1, 3 and 6 subtasks (HOLD-R: 1)
-are computed from the training demonstrations and the model folder is written.
+baseline. Afterwards the goal embeddings, thresholds, start distances and stage classifier for
+1, 3 and 6 subtasks (HOLD-R: 1) are computed from the training demonstrations (and random and
+wrong-order play) and the model folder is written; `--resume` on a finished run recalibrates.
 
 Run folder: config.json (the full configuration), train_state.pt (weights, optimiser, RNG,
 history: the `--resume` point, written every `checkpoint_every` iterations), tensorboard/,
@@ -24,12 +25,20 @@ import numpy as np
 import torch
 from inest_sim_node.collect import holds_current_block
 from inest_sim_node.dataset import METADATA_FILE, DatasetError, read_metadata, sha256_of, write_atomic
+from inest_sim_node.expert import TASK_ORDER, ScriptedExpert
 from inest_sim_node.subtasks import completed_subtasks
 from tqdm import tqdm
 
 from inest_sim_node import EnvConfig, SweepToTopEnv
 
-from .calibrate import CalibrationConfig, calibrate_thresholds, goal_embeddings, xirl_distance_scale
+from .calibrate import (
+    CalibrationConfig,
+    calibrate_thresholds,
+    goal_embeddings,
+    start_distances,
+    start_embeddings,
+    xirl_distance_scale,
+)
 from .data import AugmentConfig, Demo, augment_videos, load_demos, sample_goal_pairs, sample_tcc_batch
 from .encoders import ENCODER_KINDS, EncoderConfig, frames_to_tensor
 from .holdr import HoldRConfig
@@ -37,6 +46,7 @@ from .model import METHODS, RewardModel, SubtaskGoals, build_network, save_model
 from .rewards import subtask_rewards
 from .runs import prepare_run_dir
 from .shaping import ShapingConfig
+from .stages import demo_stages, fit_stage_classifier, true_stages
 from .tcc import tcc_loss
 
 STATE_FILE = "train_state.pt"
@@ -129,12 +139,18 @@ def dataset_hash(root: str | Path) -> str:
 
 
 RANDOM_PLAY_SEED = 40_000_000  # layouts no demonstration, training or evaluation episode uses
+WRONG_ORDER_SEED = 40_500_000
+WRONG_ORDERS = tuple(
+    order
+    for order in ((1, 0, 2), (2, 0, 1), (0, 2, 1), (1, 2, 0), (2, 1, 0))  # every order but the task's
+    if order != TASK_ORDER
+)
 
 
 @dataclass
 class RandomPlay:
     """One episode of uniformly random actions: the behaviour a policy shows before it has learnt
-    anything, which no demonstration contains."""
+    anything, which no demonstration contains (or of any other policy, e.g. wrong-order play)."""
 
     frames: np.ndarray  # (steps, S, S, 3), after each step
     progress: np.ndarray  # (steps,) ordered blocks in the goal
@@ -145,33 +161,57 @@ class RandomPlay:
         return completed_subtasks(self.progress, self.held, scheme) <= subtask
 
 
-def random_play(view: str, image_size: int, episodes: int) -> list[RandomPlay]:
+def play(env: SweepToTopEnv, act, seed: int, view: str, image_size: int) -> RandomPlay:
+    """One episode on layout `seed` under `act(env) -> action`, until the environment truncates it."""
+    env.reset(seed=seed)
+    frames, progress, held, done = [], [], [], False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(act(env))
+        frames.append(env.render_camera(view, image_size))
+        progress.append(env.progress)
+        held.append(holds_current_block(env))
+        done = terminated or truncated
+    return RandomPlay(np.stack(frames), np.array(progress), np.array(held))
+
+
+def random_play(view: str, image_size: int, episodes: int, seed: int = RANDOM_PLAY_SEED) -> list[RandomPlay]:
     env = SweepToTopEnv(config=EnvConfig(view=view, image_size=image_size))
-    rng = np.random.default_rng(RANDOM_PLAY_SEED)
+    rng = np.random.default_rng(seed)
+    try:
+        return [
+            play(env, lambda _: rng.uniform(-1.0, 1.0, 3), seed + episode, view, image_size)
+            for episode in range(episodes)
+        ]
+    finally:
+        env.close()
+
+
+def wrong_order_play(view: str, image_size: int, episodes: int, seed: int = WRONG_ORDER_SEED) -> list[RandomPlay]:
+    """The scripted expert placing the blocks in a wrong order (cycling through WRONG_ORDERS): frames
+    that look like progress but are not (the environment counts at most the prefix in order)."""
+    env = SweepToTopEnv(config=EnvConfig(view=view, image_size=image_size))
     plays = []
-    for episode in range(episodes):
-        env.reset(seed=RANDOM_PLAY_SEED + episode)
-        frames, progress, held, done = [], [], [], False
-        while not done:
-            _, _, terminated, truncated, _ = env.step(rng.uniform(-1.0, 1.0, 3))
-            frames.append(env.render_camera(view, image_size))
-            progress.append(env.progress)
-            held.append(holds_current_block(env))
-            done = terminated or truncated
-        plays.append(RandomPlay(np.stack(frames), np.array(progress), np.array(held)))
+    try:
+        for episode in range(episodes):
+            expert = ScriptedExpert(seed=seed + episode, order=WRONG_ORDERS[episode % len(WRONG_ORDERS)])
+            plays.append(play(env, expert.act, seed + episode, view, image_size))
+    finally:
+        env.close()
     return plays
 
 
 def calibrate(
     model: RewardModel, demos: list[Demo], config: PretrainConfig, progress_bar: bool = True
 ) -> dict[str, SubtaskGoals]:
-    """Goal embeddings, XIRL scale and thresholds per subtask scheme, from the training demonstrations
-    (and random play, see CalibrationConfig)."""
+    """Goal embeddings, XIRL scale, thresholds, start distances and embeddings and the stage classifier
+    per subtask scheme, from the training demonstrations (and random and wrong-order play, see CalibrationConfig)."""
     embeddings = [
         model.embed(demo.frames) for demo in tqdm(demos, desc="embedding demos", leave=False, disable=not progress_bar)
     ]
     plays = random_play(config.view, config.encoder.image_size, config.calibration.random_episodes)
     negatives = [model.embed(play.frames) for play in plays]
+    wrong = wrong_order_play(config.view, config.encoder.image_size, config.calibration.wrong_order_episodes)
+    wrong_embeddings = [model.embed(play.frames) for play in wrong]
     schemes = TCC_SCHEMES if config.method == "tcc" else (1,)
     result = {}
     for scheme in schemes:
@@ -195,6 +235,16 @@ def calibrate(
             config.shaping.hold_steps,
             config.calibration,
             false_completions,
+        )
+        partial.start_distances = start_distances(embeddings, ends, goals)
+        partial.start_embeddings = start_embeddings(embeddings, ends)
+        partial.stage_classifier = fit_stage_classifier(
+            embeddings,
+            [demo_stages(demo.progress, demo.labels[scheme], scheme) for demo in demos],
+            scheme + 1,
+            negatives + wrong_embeddings,
+            [true_stages(p.progress, p.held, scheme) for p in plays + wrong],
+            config.calibration.classifier,
         )
         result[str(scheme)] = partial
     return result
@@ -380,6 +430,12 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
     parser.add_argument("--random-episodes", type=int, default=defaults.calibration.random_episodes)
     parser.add_argument("--false-fire-rate", type=float, default=defaults.calibration.false_fire_rate)
     parser.add_argument("--demo-pass-rate", type=float, default=defaults.calibration.demo_pass_rate)
+    parser.add_argument(
+        "--wrong-order-episodes",
+        type=int,
+        default=defaults.calibration.wrong_order_episodes,
+        help="wrong-order expert episodes for the stage classifier (default %(default)s)",
+    )
     parser.add_argument("--no-augment", action="store_true")
     args = parser.parse_args(argv)
     config = dataclasses.replace(
@@ -393,8 +449,13 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         learning_rate=args.learning_rate,
         augment=dataclasses.replace(defaults.augment, enabled=not args.no_augment),
         shaping=dataclasses.replace(defaults.shaping, hold_steps=args.hold_steps),
-        calibration=CalibrationConfig(
-            args.threshold_percentile, args.random_episodes, args.false_fire_rate, args.demo_pass_rate
+        calibration=dataclasses.replace(
+            defaults.calibration,
+            percentile=args.threshold_percentile,
+            random_episodes=args.random_episodes,
+            false_fire_rate=args.false_fire_rate,
+            demo_pass_rate=args.demo_pass_rate,
+            wrong_order_episodes=args.wrong_order_episodes,
         ),
         **{name: getattr(args, name) for name in INTEGER_OPTIONS},
     )

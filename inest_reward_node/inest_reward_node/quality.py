@@ -9,33 +9,85 @@ holdr for HOLD-R models), over the validation demonstrations:
   embedding to the subtask's goal embedding, min-max normalised per demonstration, against the
   ground truth: a Gaussian centred on the frame where the subtask really ends, with a standard
   deviation of half that subtask's length; MSE averaged over subtasks and demonstrations.
-- Spearman rank correlation of the reward with progress (frame index / length; the
+- Spearman rank correlation of the total reward with progress (frame index / length; the
   demonstrations are near-optimal, so time is progress) and with the environment reward.
-- tracker replay: share of demonstrations on which a fresh subtask tracker completes every
-  subtask in order, and how many frames each completion lands from the true subtask end.
-Writes report.json (with the model's config) and PNG plots into --out.
+  The total includes the subtask bonus, a staircase that rises with every tracker completion
+  and so is monotone by construction: it flatters a reward whose shaping within a subtask is
+  flat (report key `spearman_progress_total_incl_bonus`, also kept as `spearman_progress`).
+- tracker replay: share of demonstrations on which a fresh subtask tracker marks every subtask
+  done, and how many frames each (first) completion lands from the true subtask end.
+
+Per subtask k (report key `per_subtask`, one entry per subtask, in order):
+- spearman_shaping_within: Spearman of the shaping term (RewardParts.distance: the reward
+  without subtask bonus and without intrinsic bonus) against time, over the frames whose TRUE
+  subtask is k (the dataset's per-frame labels); median and mean over the demonstrations that
+  have at least 3 such frames. spearman_embedding_within: the same for the negated raw
+  embedding distance to goal k, so the representation and the shaping can be told apart.
+- switch_dip: total reward on the frame after the tracker's completion of k minus the frame
+  before it (total[s + 1] - total[s - 1], s = the frame on which the tracker first marks k
+  done); negative = a dip, the agent is paid less just after the switch than just before it.
+  Median and worst (min) over the demonstrations where both frames exist (the last subtask
+  usually completes on a demonstration's final frame, so it rarely has one).
+- completion_lag_frames: the tracker's (first) completion frame minus the true end frame
+  (negative = early), median and mean over the demonstrations where it completed; miss_rate:
+  share of demonstrations on which it never marked k done.
+- false_completion_rate: on negatives, share of episodes in which a fresh tracker marks k done
+  (at least once) on a frame where k is not really complete: the environment's ordered
+  progress < k + 1 for 3 subtasks, per the scheme's labels for 6, progress < 3 for 1.
+  Negatives: `random` (uniform random actions, pretrain.random_play) and `wrong_order` (the
+  scripted expert placing blue, then red, then yellow), --negative-episodes of each, 100 steps,
+  on layout seeds no other episode uses (random from 41,000,000, wrong order from 41,500,000;
+  calibration's random and wrong-order play use 40,000,000 and 40,500,000 on); the camera frame
+  after every step is scored, as in training. `false_completion_any`: with any subtask.
+
+Every reward is scored through `RewardScorer` (`rewards.replay`); --scorer-option key=value
+(repeatable; the value is read as JSON when it parses, else as a string) chooses the scorer:
+a RewardScorer constructor argument passes through (a JSON object for `config` or `intrinsic`
+becomes a RewardConfig or IntrinsicConfig), a RewardConfig field (shaping=, tracker=, ...) goes
+into its `config`. So the report can be run per shaping / tracker variant, e.g.
+`--scorer-option shaping=thesis --scorer-option tracker=threshold`. Writes report.json (with
+the model's config, the scorer options and each scheme's resulting scorer config) and PNG
+plots into --out.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import inspect
 import json
+import math
 import sys
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from inest_sim_node.dataset import DatasetError
+from inest_sim_node.expert import WRONG_ORDER, ScriptedExpert
+from inest_sim_node.world import BLOCK_COLOURS
 from scipy.stats import spearmanr
 from tqdm import tqdm
 
+from inest_sim_node import EnvConfig, SweepToTopEnv
+
 from .calibrate import subtask_starts
 from .data import Demo, load_demos
+from .intrinsic import IntrinsicConfig
 from .model import ModelError, RewardModel, load_model
-from .rewards import Replay, default_variant, replay
+from .pretrain import RandomPlay, play, random_play
+from .rewards import Replay, RewardScorer, default_variant, replay
+from .stages import RewardConfig
 
 REPORT_FILE = "report.json"
+NEGATIVE_KINDS = ("random", "wrong_order")
+NEGATIVE_SEEDS = {"random": 41_000_000, "wrong_order": 41_500_000}  # layouts no other episode uses
+DEFAULT_NEGATIVE_EPISODES = 40
+MIN_WITHIN_FRAMES = 3  # fewer frames of a subtask: no within-subtask correlation for that demonstration
+
+
+SETTLE_FRAMES = 10  # copies of a demonstration's last frame the tracker replay goes on over
 
 
 def min_max(values: np.ndarray) -> np.ndarray:
@@ -60,6 +112,121 @@ def rank_correlation(a: np.ndarray, b: np.ndarray) -> float:
     return float(spearmanr(a, b).statistic)
 
 
+def subtask_name(scheme: int, subtask: int) -> str:
+    """Short name for tables: 'all' (1 subtask), the block's colour (3), 'grasp red' / 'push red' (6)."""
+    if scheme == 1:
+        return "all"
+    if scheme == 3:
+        return BLOCK_COLOURS[subtask]
+    return f"{'grasp' if subtask % 2 == 0 else 'push'} {BLOCK_COLOURS[subtask // 2]}"
+
+
+# --- per-subtask metrics of one trace ------------------------------------------------------
+def within_subtask_spearman(values: np.ndarray, labels: np.ndarray, num_subtasks: int) -> np.ndarray:
+    """(subtasks,) Spearman of `values` against the frame index over the frames labelled k.
+
+    `values`: (N,), or (N, subtasks) to correlate column k for subtask k. NaN where fewer than
+    MIN_WITHIN_FRAMES frames carry label k; 0 where the values are constant on them."""
+    values = np.asarray(values, dtype=np.float64)
+    labels = np.asarray(labels)
+    frames = np.arange(len(labels))
+    result = np.full(num_subtasks, np.nan)
+    for k in range(num_subtasks):
+        mask = labels == k
+        if mask.sum() >= MIN_WITHIN_FRAMES:
+            column = values[:, k] if values.ndim == 2 else values
+            result[k] = rank_correlation(column[mask], frames[mask])
+    return result
+
+
+def switch_dips(total: np.ndarray, completion_frames: Sequence[int], num_subtasks: int) -> np.ndarray:
+    """(subtasks,) total[s + 1] - total[s - 1] around the frame s on which the tracker completed k
+    (negative = a dip); NaN where k never completed or a neighbouring frame does not exist."""
+    dips = np.full(num_subtasks, np.nan)
+    for k, frame in enumerate(list(completion_frames)[:num_subtasks]):
+        if frame >= 1 and frame + 1 < len(total):
+            dips[k] = float(total[frame + 1] - total[frame - 1])
+    return dips
+
+
+def completion_lags(completion_frames: Sequence[int], ends: np.ndarray) -> np.ndarray:
+    """(subtasks,) tracker completion frame minus true end frame (negative = early); NaN if missed."""
+    lags = np.full(len(ends), np.nan)
+    for k, (frame, end) in enumerate(zip(completion_frames, ends, strict=False)):
+        lags[k] = frame - int(end)
+    return lags
+
+
+def false_completions(events: Sequence[Sequence[int]], episode: RandomPlay, scheme: int) -> np.ndarray:
+    """(subtasks,) bool: the tracker marked k done (on the frames `events[k]`, see
+    Replay.completion_events) at least once on a frame where k was not really complete
+    (`RandomPlay.not_yet_completed`: the ordered progress, mapped through the scheme's labels)."""
+    flags = np.zeros(len(events), dtype=bool)
+    for k, frames in enumerate(events):
+        not_done = episode.not_yet_completed(scheme, k)
+        flags[k] = any(bool(not_done[frame]) for frame in frames)
+    return flags
+
+
+# --- negative episodes -----------------------------------------------------------------------
+def wrong_order_episodes(view: str, image_size: int, episodes: int, seed: int) -> list[RandomPlay]:
+    """The scripted expert placing blue, then red, then yellow (WRONG_ORDER), recorded like random play."""
+    env = SweepToTopEnv(config=EnvConfig(view=view, image_size=image_size))
+    try:
+        return [
+            play(env, ScriptedExpert(seed=seed + episode, order=WRONG_ORDER).act, seed + episode, view, image_size)
+            for episode in range(episodes)
+        ]
+    finally:
+        env.close()
+
+
+def record_negatives(view: str, image_size: int, episodes: int) -> dict[str, list[RandomPlay]]:
+    """`episodes` random-policy (pretrain.random_play) and `episodes` wrong-order expert episodes, on
+    the layout seeds NEGATIVE_SEEDS[kind] + i; frames after every step."""
+    return {
+        "random": random_play(view, image_size, episodes, seed=NEGATIVE_SEEDS["random"]),
+        "wrong_order": wrong_order_episodes(view, image_size, episodes, NEGATIVE_SEEDS["wrong_order"]),
+    }
+
+
+def describe_negatives(negatives: dict[str, list[RandomPlay]]) -> dict[str, Any]:
+    """What the negatives were, per kind, with the true ordered progress they reached."""
+    policies = {
+        "random": "uniform random actions",
+        "wrong_order": f"scripted expert, block order {list(WRONG_ORDER)} (blue, red, yellow)",
+    }
+    described = {}
+    for kind, episodes in negatives.items():
+        described[kind] = {
+            "episodes": len(episodes),
+            "first_seed": NEGATIVE_SEEDS[kind],
+            "policy": policies[kind],
+            "true_final_progress_mean": float(np.mean([e.progress[-1] for e in episodes])) if episodes else None,
+            "true_progress_max": int(max(e.progress.max() for e in episodes)) if episodes else None,
+        }
+    return described
+
+
+def negative_flags(
+    model: RewardModel,
+    episodes: list[RandomPlay],
+    embeddings: list[np.ndarray],
+    scheme: int,
+    variant: str,
+    scorer_options: dict[str, Any] | None = None,
+) -> np.ndarray:
+    """(episodes, subtasks) bool: a fresh scorer's false completions on each negative episode."""
+    num_subtasks = len(model.goals(scheme).goals)
+    rows = []
+    for episode, embedded in zip(episodes, embeddings, strict=True):
+        played = replay(model, embedded, scheme, variant, scorer_options)
+        events = [played.completion_events(k) for k in range(num_subtasks)]
+        rows.append(false_completions(events, episode, scheme))
+    return np.stack(rows) if rows else np.zeros((0, num_subtasks), dtype=bool)
+
+
+# --- one demonstration ---------------------------------------------------------------------
 @dataclass
 class DemoQuality:
     """One demonstration's numbers under one scheme."""
@@ -70,20 +237,44 @@ class DemoQuality:
     gaussians: np.ndarray  # (frames, subtasks)
     replay: Replay
     ends: np.ndarray
-    metrics: dict[str, float] = field(default_factory=dict)
+    labels: np.ndarray  # (frames,) the true subtask of every frame
+    metrics: dict[str, float]
+    within_shaping: np.ndarray  # (subtasks,) within_subtask_spearman of the shaping term
+    within_embedding: np.ndarray  # (subtasks,) the same of -raw embedding distance to goal k
+    dips: np.ndarray  # (subtasks,) switch_dips
+    lags: np.ndarray  # (subtasks,) completion_lags
 
 
-def demo_quality(model: RewardModel, demo: Demo, embeddings: np.ndarray, scheme: int, variant: str) -> DemoQuality:
-    played = replay(model, embeddings, scheme, variant)
+def demo_quality(
+    model: RewardModel,
+    demo: Demo,
+    embeddings: np.ndarray,
+    scheme: int,
+    variant: str,
+    scorer_options: dict[str, Any] | None = None,
+) -> DemoQuality:
+    # a demonstration ends on the frame where its last block counts, while an episode goes on:
+    # the tracker may confirm the last subtask on the frames after, so it is replayed over
+    # SETTLE_FRAMES more copies of the last frame (per-frame metrics use the demonstration's own)
+    settled = replay(
+        model,
+        np.concatenate([embeddings, np.repeat(embeddings[-1:], SETTLE_FRAMES, 0)]),
+        scheme,
+        variant,
+        scorer_options,
+    )
+    played = Replay(settled.parts.select(slice(0, len(embeddings))), settled.num_subtasks)  # the scorer is causal
     env = np.concatenate([demo.rewards[:1], demo.rewards]).astype(np.float64)
     goals = model.goals(scheme).goals
     ends = demo.ends[scheme]
+    labels = np.asarray(demo.labels[scheme], dtype=int)
     starts = subtask_starts(ends)
     cosine = np.stack([cosine_similarity(embeddings, goal) for goal in goals], axis=1)
     gaussians = np.stack([ground_truth_gaussian(len(demo), s, e) for s, e in zip(starts, ends, strict=True)], axis=1)
     learned, oracle = min_max(played.rewards), min_max(env)
     progress = np.arange(len(demo)) / max(len(demo) - 1, 1)
-    offsets = [frame - int(end) for frame, end in zip(played.completion_frames, ends, strict=False)]
+    completions = settled.completion_frames
+    offsets = [frame - int(end) for frame, end in zip(completions, ends, strict=False)]
     metrics = {
         "mse": float(np.mean((learned - oracle) ** 2)),
         "mae": float(np.mean(np.abs(learned - oracle))),
@@ -93,22 +284,91 @@ def demo_quality(model: RewardModel, demo: Demo, embeddings: np.ndarray, scheme:
         ),
         "spearman_progress": rank_correlation(played.rewards, progress),
         "spearman_env": rank_correlation(played.rewards, env),
-        "tracker_all_completed": float(played.all_completed),
+        "tracker_all_completed": float(settled.all_completed),
         "completion_offset_frames": float(np.mean(offsets)) if offsets else float("nan"),
     }
-    return DemoQuality(played.rewards, env, cosine, gaussians, played, ends, metrics)
+    distances = np.linalg.norm(embeddings[:, None, :] - goals[None], axis=-1)
+    return DemoQuality(
+        reward=played.rewards,
+        env=env,
+        cosine=cosine,
+        gaussians=gaussians,
+        replay=played,
+        ends=ends,
+        labels=labels,
+        metrics=metrics,
+        within_shaping=within_subtask_spearman(played.distance, labels, len(goals)),
+        within_embedding=within_subtask_spearman(-distances, labels, len(goals)),
+        dips=switch_dips(settled.rewards, completions, len(goals)),
+        lags=completion_lags(completions, ends),
+    )
+
+
+# --- summaries ---------------------------------------------------------------------------
+def finite_or_none(value: float) -> float | None:
+    """JSON has no NaN: undefined statistics are written as null."""
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def finite_stats(values: np.ndarray, **statistics: Callable[[np.ndarray], float]) -> dict[str, float | None]:
+    """Each named statistic over the finite values (None when there are none)."""
+    finite = np.asarray(values, dtype=np.float64)
+    finite = finite[np.isfinite(finite)]
+    return {name: finite_or_none(function(finite)) if len(finite) else None for name, function in statistics.items()}
+
+
+def per_subtask_summary(
+    results: list[DemoQuality], scheme: int, negatives: dict[str, np.ndarray]
+) -> list[dict[str, Any]]:
+    """One entry per subtask (see the module doc); `negatives[kind]`: (episodes, subtasks) false completions."""
+    within_shaping = np.stack([r.within_shaping for r in results])
+    within_embedding = np.stack([r.within_embedding for r in results])
+    dips = np.stack([r.dips for r in results])
+    lags = np.stack([r.lags for r in results])
+    rows = []
+    for k in range(within_shaping.shape[1]):
+        rows.append(
+            {
+                "subtask": k,
+                "name": subtask_name(scheme, k),
+                "spearman_shaping_within": {
+                    **finite_stats(within_shaping[:, k], median=np.median, mean=np.mean),
+                    "demos": int(np.isfinite(within_shaping[:, k]).sum()),
+                },
+                "spearman_embedding_within": {
+                    **finite_stats(within_embedding[:, k], median=np.median, mean=np.mean),
+                    "demos": int(np.isfinite(within_embedding[:, k]).sum()),
+                },
+                "switch_dip": {
+                    **finite_stats(dips[:, k], median=np.median, min=np.min),
+                    "switches": int(np.isfinite(dips[:, k]).sum()),
+                },
+                "completion_lag_frames": {
+                    **finite_stats(lags[:, k], median=np.median, mean=np.mean),
+                    "completed": int(np.isfinite(lags[:, k]).sum()),
+                },
+                "miss_rate": float(np.mean(~np.isfinite(lags[:, k]))),
+                "false_completion_rate": {
+                    kind: float(flags[:, k].mean()) if len(flags) else None for kind, flags in negatives.items()
+                },
+            }
+        )
+    return rows
 
 
 def summarise(results: list[DemoQuality]) -> dict[str, Any]:
     table = {key: np.array([r.metrics[key] for r in results]) for key in results[0].metrics}
+    spearman_total = {
+        "median": float(np.median(table["spearman_progress"])),
+        "mean": float(table["spearman_progress"].mean()),
+    }
     return {
         "demos": len(results),
         "reward_vs_env": {key: float(table[key].mean()) for key in ("mse", "mae", "bias")},
         "cosine_gaussian_mse": float(table["cosine_gaussian_mse"].mean()),
-        "spearman_progress": {
-            "median": float(np.median(table["spearman_progress"])),
-            "mean": float(table["spearman_progress"].mean()),
-        },
+        "spearman_progress_total_incl_bonus": spearman_total,
+        "spearman_progress": dict(spearman_total),  # the same numbers, under the key older reports use
         "spearman_env": {
             "median": float(np.median(table["spearman_env"])),
             "mean": float(table["spearman_env"].mean()),
@@ -120,63 +380,256 @@ def summarise(results: list[DemoQuality]) -> dict[str, Any]:
     }
 
 
+SUMMARY_NOTES = {
+    "spearman_progress_total_incl_bonus": "Spearman of the TOTAL reward (subtask-bonus staircase included, monotone "
+    "by construction) with time; median/mean over demonstrations. `spearman_progress` holds the same numbers.",
+    "per_subtask": "per subtask k: within-subtask Spearman vs time of the shaping term (reward without bonus and "
+    "intrinsic) and of -embedding distance to goal k, over the frames whose true subtask is k; switch dip "
+    "total[s+1] - total[s-1] at the tracker's completion frame s (negative = dip); completion lag (tracker minus "
+    "true end, frames) and miss rate; false-completion rate on random and wrong-order negatives. Details: the "
+    "module doc in `normalisation`.",
+    "false_completion_any": "share of negative episodes with a false completion of any subtask",
+    "scorer": "the scorer each scheme was scored with: reward variant and RewardConfig after the scorer options",
+}
+
+
+# --- plots -----------------------------------------------------------------------------------
 def plot_scheme(results: list[DemoQuality], title: str, path: Path, examples: int = 3) -> None:
-    """Top row: learned vs environment reward (normalised); bottom row: cosine curves vs ground truth."""
+    """Top row: learned vs environment reward (normalised); middle row: cosine curves vs ground truth;
+    bottom row: the shaping term (reward without bonus) on each true subtask's frames, tracker
+    completions as grey lines, true subtask ends dotted."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     shown = results[:examples]
-    figure, axes = plt.subplots(2, len(shown), figsize=(4.2 * len(shown), 6), squeeze=False)
+    figure, axes = plt.subplots(3, len(shown), figsize=(4.2 * len(shown), 9), squeeze=False)
     colours = plt.get_cmap("tab10")
     for column, result in enumerate(shown):
-        top, bottom = axes[0, column], axes[1, column]
+        top, middle, bottom = axes[0, column], axes[1, column], axes[2, column]
+        completions = result.replay.completion_frames
         top.plot(min_max(result.reward), label="learned (normalised)")
         top.plot(min_max(result.env), "--", label="environment (normalised)")
-        for frame in result.replay.completion_frames:
+        for frame in completions:
             top.axvline(frame, color="grey", alpha=0.4, linewidth=0.8)
         top.set(title=f"demo {column}: reward", xlabel="frame")
         for i in range(result.cosine.shape[1]):
-            bottom.plot(min_max(result.cosine[:, i]), color=colours(i), label=f"subtask {i + 1}")
-            bottom.plot(result.gaussians[:, i], "--", color=colours(i), alpha=0.6)
-        bottom.set(title="cosine to goal (solid) vs ground truth (dashed)", xlabel="frame")
+            middle.plot(min_max(result.cosine[:, i]), color=colours(i), label=f"subtask {i + 1}")
+            middle.plot(result.gaussians[:, i], "--", color=colours(i), alpha=0.6)
+        middle.set(title="cosine to goal (solid) vs ground truth (dashed)", xlabel="frame")
+        frames = np.arange(len(result.labels))
+        shaping = result.replay.distance
+        for i in range(result.cosine.shape[1]):
+            mask = result.labels == i
+            label = f"true subtask {i + 1}"
+            bottom.plot(frames[mask], shaping[mask], ".-", color=colours(i), markersize=3, label=label)
+            bottom.axvline(int(result.ends[i]), color=colours(i), linestyle=":", linewidth=1.0)
+        for frame in completions:
+            bottom.axvline(frame, color="grey", alpha=0.6, linewidth=1.0)
+        rhos = ", ".join("-" if not np.isfinite(rho) else f"{rho:.2f}" for rho in result.within_shaping)
+        bottom.set_title(f"shaping by true subtask, rho {rhos}", fontsize=9)
+        bottom.set(xlabel="frame (grey: tracker completions)", ylabel="reward without bonus")
     axes[0, 0].legend(fontsize=8)
     axes[1, 0].legend(fontsize=8)
+    axes[2, 0].legend(fontsize=7)
     figure.suptitle(title)
     figure.tight_layout()
     figure.savefig(path, dpi=90)
     plt.close(figure)
 
 
-def evaluate(
-    model: RewardModel, demos: list[Demo], schemes: list[int], out: Path, progress_bar: bool = True
+# --- scorer options ----------------------------------------------------------------------------
+class ScorerOptionError(ValueError):
+    """RewardScorer refuses the scorer options given."""
+
+
+OPTION_DATACLASSES = {"config": RewardConfig, "intrinsic": IntrinsicConfig}  # RewardScorer parameters
+
+
+def parse_scorer_option(text: str) -> tuple[str, Any]:
+    """'key=value' -> (key, value), the value read as JSON when it parses (3, 0.5, true, "x", {...}), else
+    kept as a string."""
+    key, separator, value = text.partition("=")
+    if not separator or not key.isidentifier():
+        raise argparse.ArgumentTypeError(f"expected key=value with a Python identifier as key, got {text!r}")
+    try:
+        return key, json.loads(value)
+    except json.JSONDecodeError:
+        return key, value
+
+
+def scorer_arguments(options: dict[str, Any]) -> dict[str, Any]:
+    """--scorer-option values -> RewardScorer keyword arguments. A key naming a RewardScorer parameter
+    passes through (a JSON object for `config` / `intrinsic` becomes a RewardConfig / IntrinsicConfig);
+    a key naming a RewardConfig field (shaping, tracker, hold_steps, ...) goes into `config`; anything
+    else is passed on, for RewardScorer to refuse."""
+    parameters = inspect.signature(RewardScorer.__init__).parameters
+    config_fields = {item.name for item in dataclasses.fields(RewardConfig)}
+    arguments: dict[str, Any] = {}
+    into_config: dict[str, Any] = {}
+    try:
+        for key, value in options.items():
+            if key not in parameters and key in config_fields:
+                into_config[key] = value
+            elif key in OPTION_DATACLASSES and isinstance(value, dict):
+                arguments[key] = OPTION_DATACLASSES[key](**value)
+            else:
+                arguments[key] = value
+        if into_config:
+            base = arguments.get("config")
+            arguments["config"] = (
+                dataclasses.replace(base, **into_config) if base is not None else RewardConfig(**into_config)
+            )
+    except (TypeError, ValueError) as error:
+        raise ScorerOptionError(f"bad scorer options {format_options(options)}: {error}") from error
+    return arguments
+
+
+def json_ready(options: dict[str, Any] | None) -> dict[str, Any]:
+    """Scorer options for report.json: config dataclasses as dicts."""
+    return {
+        key: dataclasses.asdict(value) if dataclasses.is_dataclass(value) else value
+        for key, value in (options or {}).items()
+    }
+
+
+def format_options(options: dict[str, Any] | None) -> str:
+    return " ".join(f"{key}={json.dumps(value)}" for key, value in json_ready(options).items())
+
+
+def describe_scorer(
+    model: RewardModel, scheme: int, variant: str, scorer_options: dict[str, Any] | None
 ) -> dict[str, Any]:
+    """The scorer the options make (what report.json records per scheme); ScorerOptionError when
+    RewardScorer refuses them, so that a bad option fails before any work."""
+    try:
+        scorer = RewardScorer(model, scheme, variant, **(scorer_options or {}))
+    except (TypeError, ValueError, AttributeError) as error:
+        raise ScorerOptionError(
+            f"RewardScorer does not accept the scorer options {format_options(scorer_options)}: {error}"
+        ) from error
+    config = getattr(scorer, "config", None)
+    return {
+        "variant": scorer.variant,
+        "config": dataclasses.asdict(config) if dataclasses.is_dataclass(config) else None,
+    }
+
+
+def check_scorer_options(model: RewardModel, schemes: list[int], scorer_options: dict[str, Any] | None) -> None:
+    for scheme in schemes:
+        describe_scorer(model, scheme, default_variant(model, scheme), scorer_options)
+
+
+# --- the report --------------------------------------------------------------------------------
+def evaluate(
+    model: RewardModel,
+    demos: list[Demo],
+    schemes: list[int],
+    out: Path,
+    progress_bar: bool = True,
+    scorer_options: dict[str, Any] | None = None,
+    negative_episodes: int = DEFAULT_NEGATIVE_EPISODES,
+) -> dict[str, Any]:
+    """The report over `demos` for every scheme, with `negative_episodes` negatives of each kind;
+    every reward is scored by `RewardScorer(model, scheme, variant, **scorer_options)`."""
     out.mkdir(parents=True, exist_ok=True)
     embeddings = [
         model.embed(demo.frames) for demo in tqdm(demos, desc="embedding", disable=not progress_bar, leave=False)
     ]
-    report: dict[str, Any] = {"model": model.metadata, "normalisation": __doc__, "schemes": {}}
+    with tqdm(total=1, desc="negative episodes", disable=not progress_bar, leave=False) as bar:
+        negatives = record_negatives(model.view, model.image_size, negative_episodes)
+        bar.update(1)
+    negative_embeddings = {
+        kind: [model.embed(episode.frames) for episode in episodes] for kind, episodes in negatives.items()
+    }
+    report: dict[str, Any] = {
+        "model": model.metadata,
+        "normalisation": __doc__,
+        "scorer_options": json_ready(scorer_options),
+        "negatives": describe_negatives(negatives),
+        "notes": SUMMARY_NOTES,
+        "schemes": {},
+    }
     for scheme in schemes:
         variant = default_variant(model, scheme)
-        results = [demo_quality(model, demo, emb, scheme, variant) for demo, emb in zip(demos, embeddings, strict=True)]
-        summary = {"variant": variant, **summarise(results)}
+        scorer = describe_scorer(model, scheme, variant, scorer_options)
+        results = [
+            demo_quality(model, demo, emb, scheme, variant, scorer_options)
+            for demo, emb in zip(demos, embeddings, strict=True)
+        ]
+        flags = {
+            kind: negative_flags(model, negatives[kind], negative_embeddings[kind], scheme, variant, scorer_options)
+            for kind in NEGATIVE_KINDS
+        }
+        summary = {"variant": variant, "scorer": scorer, **summarise(results)}
+        summary["per_subtask"] = per_subtask_summary(results, scheme, flags)
+        summary["false_completion_any"] = {
+            kind: float(rows.any(axis=1).mean()) if len(rows) else None for kind, rows in flags.items()
+        }
         plot_path = out / f"quality_{variant}_{scheme}.png"
-        plot_scheme(results, f"{variant}, {scheme} subtask(s), {model.view} camera", plot_path)
+        options = f", {format_options(scorer_options)}" if scorer_options else ""
+        plot_scheme(results, f"{variant}{options}, {scheme} subtask(s), {model.view} camera", plot_path)
         summary["plot"] = plot_path.name
         report["schemes"][str(scheme)] = summary
     (out / REPORT_FILE).write_text(json.dumps(report, indent=2) + "\n")
     return report
 
 
+SUBTASK_COLUMNS = (  # the summary table's per-subtask columns: title, width
+    ("shaping rho", 12),
+    ("embed rho", 10),
+    ("dip med", 9),
+    ("dip min", 9),
+    ("lag med", 9),
+    ("lag mean", 9),
+    ("miss", 7),
+    ("false rand", 11),
+    ("false wrong", 12),
+)
+
+
+def _number(value: float | None, spec: str, width: int) -> str:
+    return f"{'-' if value is None else format(value, spec):>{width}}"
+
+
 def format_summary(report: dict[str, Any]) -> str:
-    lines = ["variant  subtasks  spearman(progress)  tracker pass  MSE    MAE    bias    cosine-MSE"]
+    lines = []
+    if report.get("scorer_options"):
+        lines.append(f"scorer options: {format_options(report['scorer_options'])}")
+    header = "variant  subtasks  spearman(progress, total incl. bonus)  tracker pass  MSE    MAE    bias    cosine-MSE"
     for scheme, row in report["schemes"].items():
         env = row["reward_vs_env"]
+        lines.append(header)
         lines.append(
-            f"{row['variant']:<8} {scheme:>8}  {row['spearman_progress']['median']:>18.3f}  "
+            f"{row['variant']:<8} {scheme:>8}  {row['spearman_progress_total_incl_bonus']['median']:>37.3f}  "
             f"{row['tracker_pass_rate']:>12.1%}  {env['mse']:.3f}  {env['mae']:.3f}  {env['bias']:+.3f}  "
             f"{row['cosine_gaussian_mse']:.3f}"
+        )
+        lines.append("  subtask".ljust(17) + "".join(f"{title:>{width}}" for title, width in SUBTASK_COLUMNS))
+        for sub in row["per_subtask"]:
+            false = sub["false_completion_rate"]
+            values = (
+                (sub["spearman_shaping_within"]["median"], ".3f"),
+                (sub["spearman_embedding_within"]["median"], ".3f"),
+                (sub["switch_dip"]["median"], "+.3f"),
+                (sub["switch_dip"]["min"], "+.3f"),
+                (sub["completion_lag_frames"]["median"], "+.1f"),
+                (sub["completion_lag_frames"]["mean"], "+.1f"),
+                (sub["miss_rate"], ".1%"),
+                (false.get("random"), ".1%"),
+                (false.get("wrong_order"), ".1%"),
+            )
+            cells = "".join(
+                _number(value, spec, width) for (value, spec), (_, width) in zip(values, SUBTASK_COLUMNS, strict=True)
+            )
+            lines.append(f"  {sub['subtask'] + 1} {sub['name']:<13}{cells}")
+    negatives = report.get("negatives", {})
+    if negatives:
+        counts = ", ".join(f"{entry['episodes']} {kind}" for kind, entry in negatives.items())
+        lines.append(
+            f"rho: median within-subtask Spearman vs time; dip: total after - before each completion; "
+            f"false: share of negative episodes ({counts})"
         )
     return "\n".join(lines)
 
@@ -189,17 +642,47 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--schemes", type=int, nargs="*", help="subtask schemes (default: all the model has)")
     parser.add_argument("--split", default="valid", choices=("train", "valid"))
     parser.add_argument("--limit", type=int, help="use only the first N demonstrations")
+    parser.add_argument(
+        "--negative-episodes",
+        type=int,
+        default=DEFAULT_NEGATIVE_EPISODES,
+        help=f"random-policy and wrong-order episodes, each, for the false-completion rates (default "
+        f"{DEFAULT_NEGATIVE_EPISODES}; 0 skips them)",
+    )
+    parser.add_argument(
+        "--scorer-option",
+        type=parse_scorer_option,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="how RewardScorer scores (repeatable): a constructor argument, or a RewardConfig field such as "
+        "shaping=thesis or tracker=threshold; the value is read as JSON when it parses, else as a string",
+    )
     args = parser.parse_args(argv)
+    if args.negative_episodes < 0:
+        parser.error(f"--negative-episodes must be >= 0, got {args.negative_episodes}")
+    options = dict(args.scorer_option)
+    if len(options) != len(args.scorer_option):
+        parser.error("each --scorer-option key may be given once")
     try:
+        scorer_options = scorer_arguments(options)
         model = load_model(args.model)
         schemes = args.schemes or sorted(model.subtasks)
         for scheme in schemes:
             model.goals(scheme)
+        check_scorer_options(model, schemes, scorer_options)
         demos = load_demos(args.dataset, args.split, model.view, model.image_size, args.limit)
         if not demos:
             raise DatasetError(f"{args.dataset} has no {args.split} demonstrations")
-        report = evaluate(model, demos, schemes, Path(args.out))
-    except (ModelError, DatasetError) as error:
+        report = evaluate(
+            model,
+            demos,
+            schemes,
+            Path(args.out),
+            scorer_options=scorer_options,
+            negative_episodes=args.negative_episodes,
+        )
+    except (ModelError, DatasetError, ScorerOptionError) as error:
         print(f"inest-reward-quality: {error}", file=sys.stderr)
         return 2
     print(format_summary(report))

@@ -1,11 +1,16 @@
 """Per-frame learned rewards of the three methods, and replaying a frame sequence through the tracker.
 
-- inest: r(d) to the current subtask's goal (d rescaled, see ShapingConfig), plus the bonus
-  per completed subtask; the bonus alone once the last subtask is done.
+- inest: per `RewardConfig.shaping` (stages.py): r(d) to the current subtask's goal (d rescaled,
+  see ShapingConfig; "thesis") or raw ("raw"), plus the bonus per completed subtask, the bonus
+  alone once the last subtask is done; or per-subtask progress, bonus x (completed + closeness
+  to the current goal) ("progress": by the distance to the goal; "segment": by where the frame
+  sits between the subtask's start and its goal).
 - xirl: -scale * d to the single (final) goal embedding.
 - holdr: -max(0, d(s, g) - d(g, g)) / T with d the predicted steps to the goal, T the horizon.
-Completion thresholds live on each method's own per-subtask reward: r(d) for TCC models,
-the HOLD-R reward for HOLD-R models.
+Which subtask a frame is in comes from `RewardConfig.tracker` (the thesis's threshold counter,
+the same with reopening, or the learned stage classifier) or, as a diagnostic only, from the
+simulator's true progress (`stage_source="privileged"`). Completion thresholds live on each
+method's own per-subtask reward: r(d) for TCC models, the HOLD-R reward for HOLD-R models.
 """
 
 from __future__ import annotations
@@ -17,8 +22,19 @@ import numpy as np
 from .intrinsic import IntrinsicConfig, NoveltyMemory
 from .model import ModelError, RewardModel, SubtaskGoals
 from .shaping import SubtaskTracker, distance_reward
+from .stages import (
+    ClassifierTracker,
+    ConfirmedTracker,
+    PrivilegedStage,
+    ReopeningTracker,
+    RewardConfig,
+    StageTracker,
+    privileged_stages,
+    segment_closeness,
+)
 
 REWARD_VARIANTS = ("inest", "xirl", "holdr")
+THESIS_REWARD = RewardConfig(shaping="thesis", tracker="threshold")  # the reward as the thesis has it
 
 
 def default_variant(model: RewardModel, scheme: int) -> str:
@@ -43,6 +59,11 @@ def inest_distance_unit(model: RewardModel, goals: SubtaskGoals) -> float:
     return goals.distance_scale * model.shaping.start_distance
 
 
+def goal_distances(embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:
+    """(N, subtasks): raw embedding distance of each frame to every subtask goal."""
+    return np.linalg.norm(np.asarray(embeddings)[:, None, :] - goals.goals[None], axis=-1)
+
+
 def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:
     """(N, subtasks): each frame's completion-test reward against every subtask goal."""
     if model.method == "holdr":
@@ -52,8 +73,12 @@ def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGo
             to_goal = model.holdr_steps(embeddings, goal)
             columns.append(-np.maximum(0.0, to_goal - model.holdr_steps_at_goal(goal)) / horizon)
         return np.stack(columns, axis=1)
-    distances = np.linalg.norm(embeddings[:, None, :] - goals.goals[None], axis=-1)
-    return distance_reward(distances * inest_distance_unit(model, goals), model.shaping)
+    return distance_reward(goal_distances(embeddings, goals) * inest_distance_unit(model, goals), model.shaping)
+
+
+def closeness(distances: np.ndarray, start_distances: np.ndarray) -> np.ndarray:
+    """Per-subtask progress in [0, 1]: 1 - min(1, d_k / d_k_start)."""
+    return 1.0 - np.minimum(1.0, np.asarray(distances) / np.asarray(start_distances))
 
 
 @dataclass
@@ -61,12 +86,12 @@ class RewardParts:
     """One scored batch: per environment, the reward and what it is made of."""
 
     total: np.ndarray  # (N,) what the agent receives
-    distance: np.ndarray  # (N,) the method's per-frame reward (INEST: r(d) to the current goal; 0 once done)
+    distance: np.ndarray  # (N,) the method's per-frame reward (INEST: shaping term of the current goal; 0 once done)
     bonus: np.ndarray  # (N,) subtask bonus (INEST: completed subtasks x bonus)
     intrinsic: np.ndarray  # (N,) weighted novelty bonus
     subtask: np.ndarray  # (N,) current subtask index after this frame
-    completed: np.ndarray  # (N,) subtasks completed after this frame
-    switched: np.ndarray  # (N,) bool, this frame completed a subtask
+    completed: np.ndarray  # (N,) subtasks completed after this frame: the stage the policy should see (may drop)
+    switched: np.ndarray  # (N,) bool, this frame completed a subtask (an upward switch only)
     embeddings: np.ndarray  # (N, D) the frames' embeddings, for coverage analysis
 
     def select(self, rows: slice | np.ndarray) -> RewardParts:
@@ -78,7 +103,10 @@ class RewardScorer:
     per-subtask novelty memories shared by all of them.
 
     `score(frames)` embeds all N frames in one forward pass. `reset(i)` starts environment i's
-    next episode: its tracker restarts, the exploration memories are kept.
+    next episode: its tracker restarts, the exploration memories are kept. `config` (None: the
+    RewardConfig defaults) chooses shaping, tracker and stage source; THESIS_REWARD is the
+    thesis's reward exactly. With `stage_source="privileged"` (a diagnostic) every scored frame
+    needs its state vector.
     """
 
     def __init__(
@@ -88,15 +116,49 @@ class RewardScorer:
         variant: str | None = None,
         intrinsic: IntrinsicConfig | None = None,
         num_envs: int = 1,
+        config: RewardConfig | None = None,
     ) -> None:
         self.model = model
         self.variant = variant or default_variant(model, scheme)
         check_variant(model, self.variant, scheme)
         self.goals = model.goals(scheme)
+        self.scheme = scheme
+        self.config = config or RewardConfig()
         self.intrinsic = intrinsic or IntrinsicConfig(mode="none")
-        self.trackers = [SubtaskTracker(self.goals.thresholds, model.shaping.hold_steps) for _ in range(num_envs)]
+        self.hold_steps = self.config.hold_steps or model.shaping.hold_steps
+        config, inest = self.config, self.variant == "inest"
+        if config.stage_source == "privileged" and scheme not in (1, 3):
+            raise ValueError(
+                f"stage_source 'privileged' (a diagnostic) knows the true stage of the 1- and 3-subtask "
+                f"schemes only, not {scheme}"
+            )
+        self.start_distances = None
+        if inest and config.shaping == "progress":
+            self.start_distances = np.asarray(self.goals.require_start_distances(), dtype=np.float64)
+        self.start_embeddings = None
+        if (inest and config.shaping == "segment") or config.reopens:
+            self.start_embeddings = self.goals.require_start_embeddings()
+        self.classifier = self.goals.require_stage_classifier() if config.uses_classifier else None
+        if self.classifier is not None and self.classifier.num_stages != self.num_subtasks + 1:
+            raise ModelError(
+                f"the stage classifier predicts {self.classifier.num_stages} stages, "
+                f"not the {self.num_subtasks + 1} of {scheme} subtasks"
+            )
+        self.trackers: list[SubtaskTracker | StageTracker] = [self.new_tracker() for _ in range(num_envs)]
         self.steps_since_switch = np.full(num_envs, -1)
         self.memories: list[NoveltyMemory] = []
+
+    def new_tracker(self) -> SubtaskTracker | StageTracker:
+        config, thresholds = self.config, self.goals.thresholds
+        if config.stage_source == "privileged":
+            return PrivilegedStage(len(thresholds))
+        if config.tracker == "classifier":
+            return ClassifierTracker(len(thresholds), self.hold_steps, config.stage_confidence)
+        if config.tracker == "confirmed":
+            return ConfirmedTracker(thresholds, self.hold_steps, config.stage_confidence, config.confirm_window)
+        if config.tracker == "reopening":
+            return ReopeningTracker(thresholds, self.hold_steps)
+        return SubtaskTracker(thresholds, self.hold_steps)
 
     @property
     def num_envs(self) -> int:
@@ -142,7 +204,8 @@ class RewardScorer:
         rounds: np.ndarray | None = None,
         episode_ends: np.ndarray | None = None,
     ) -> RewardParts:
-        """Move the frames' trackers on, given each frame's reward against every subtask goal."""
+        """Move the frames' trackers on, given each frame's reward against every subtask goal
+        (subtask_rewards: what the threshold tests and the thesis shaping use)."""
         if envs is None:
             if len(per_subtask) != self.num_envs:
                 raise ValueError(f"expected one frame per environment ({self.num_envs}), got {len(per_subtask)}")
@@ -154,27 +217,57 @@ class RewardScorer:
         if len(rounds) != len(envs) or np.any(np.diff(rounds) < 0):
             raise ValueError("rounds must give every frame its round, in ascending order")
         ends = np.zeros(len(envs), bool) if episode_ends is None else np.asarray(episode_ends, dtype=bool)
+        config, inest = self.config, self.variant == "inest"
+        bonus_per_subtask = self.model.shaping.subtask_bonus
+        # the whole batch's evidence at once; the trackers then take it row by row, in order
+        distances = goal_distances(embeddings, self.goals) if inest and config.shaping != "thesis" else None
+        segments = None
+        if self.start_embeddings is not None:
+            from_start = np.linalg.norm(np.asarray(embeddings)[:, None, :] - self.start_embeddings[None], axis=-1)
+            to_goal = goal_distances(embeddings, self.goals) if distances is None else distances
+            segments = segment_closeness(to_goal, from_start)
+        if inest and config.shaping == "raw":
+            shaped = distance_reward(distances, self.model.shaping)
+        elif inest and config.shaping == "progress":
+            shaped = bonus_per_subtask * closeness(distances, self.start_distances)
+        elif inest and config.shaping == "segment":
+            shaped = bonus_per_subtask * segments
+        else:
+            shaped = per_subtask
+        at_least = self.classifier.at_least(embeddings) if self.classifier is not None else None
+        true_stage = privileged_stages(states, self.scheme) if config.stage_source == "privileged" else None
+        if true_stage is not None and len(true_stage) != len(envs):
+            raise ValueError(f"expected one state vector per frame ({len(envs)}), got {len(true_stage)}")
         count = len(envs)
-        distance, bonus, subtask, completed = (
-            np.zeros(count),
-            np.zeros(count),
-            np.zeros(count, int),
-            np.zeros(count, int),
-        )
+        distance, bonus = np.zeros(count), np.zeros(count)
+        subtask, completed = np.zeros(count, int), np.zeros(count, int)
         switched = np.zeros(count, bool)
         novelty_subtask, since_switch = np.zeros(count, int), np.zeros(count, int)
         for row, (env, rewards) in enumerate(zip(envs, per_subtask, strict=True)):
             tracker = self.trackers[env]
-            novelty_subtask[row] = tracker.current  # novelty is judged within the subtask the frame was taken in
+            before = tracker.current
+            novelty_subtask[row] = before  # novelty is judged within the subtask the frame was taken in
             since_switch[row] = self.steps_since_switch[env]
             was_done = tracker.done
-            reward_now = rewards[tracker.current]
-            switched[row] = tracker.update(reward_now)
-            if self.variant == "inest":
-                distance[row] = 0.0 if was_done else reward_now
-                bonus[row] = tracker.completed * self.model.shaping.subtask_bonus
+            if isinstance(tracker, SubtaskTracker):
+                change = int(tracker.update(rewards[before]))
+            elif isinstance(tracker, ConfirmedTracker):
+                change = tracker.step(rewards, segments[row], at_least[row])
+            elif isinstance(tracker, ReopeningTracker):
+                change = tracker.step(rewards, segments[row])
+            elif isinstance(tracker, ClassifierTracker):
+                change = tracker.step(at_least[row])
             else:
+                change = tracker.step(true_stage[row])
+            switched[row] = change > 0
+            if not inest:
                 distance[row] = rewards[-1]
+            elif config.shaping in ("progress", "segment"):  # the stage after this frame: continuous at a switch
+                distance[row] = 0.0 if tracker.done else shaped[row, tracker.current]
+            else:
+                distance[row] = 0.0 if was_done else shaped[row, before]
+            if inest:
+                bonus[row] = tracker.completed * bonus_per_subtask
             subtask[row], completed[row] = tracker.current, tracker.completed
             if switched[row]:
                 self.steps_since_switch[env] = 0
@@ -196,8 +289,8 @@ class RewardScorer:
         since_switch: np.ndarray,
         rounds: np.ndarray,
     ) -> np.ndarray:
-        """Weighted novelty of each frame in its subtask's memory; frames of a later round (step)
-        are judged against a memory holding the earlier rounds' frames."""
+        """Weighted novelty of each frame in its subtask's memory, clipped at RewardConfig.intrinsic_cap;
+        frames of a later round (step) are judged against a memory holding the earlier rounds' frames."""
         config = self.intrinsic
         if config.mode == "none":
             return np.zeros(len(subtasks))
@@ -213,33 +306,77 @@ class RewardScorer:
         for subtask in np.unique(subtasks):
             members = subtasks == subtask
             novelty[members] = self.memories[subtask].novelty_in_rounds(vectors[members], rounds[members], config.k)
-        return config.weight_after(since_switch) * novelty
+        return np.minimum(config.weight_after(since_switch) * novelty, self.config.cap)
 
 
 @dataclass
 class Replay:
-    rewards: np.ndarray  # (N,) the reward the agent would receive on each frame
-    subtask: np.ndarray  # (N,) the tracker's current subtask on each frame (after the update)
-    completed: np.ndarray  # (N,) subtasks completed so far
-    completion_frames: list[int]  # frame on which each completed subtask completed
+    """One episode fed, frame by frame in order, through a fresh `RewardScorer`: what its scorer
+    returned for every frame (`parts`), with the views the reports read."""
+
+    parts: RewardParts  # every frame's reward and what it is made of, in frame order
     num_subtasks: int
 
     @property
+    def rewards(self) -> np.ndarray:
+        """(N,) the reward the agent would receive on each frame (RewardParts.total)."""
+        return self.parts.total
+
+    @property
+    def distance(self) -> np.ndarray:
+        """(N,) the shaping term: the reward without subtask bonus and intrinsic bonus."""
+        return self.parts.distance
+
+    @property
+    def bonus(self) -> np.ndarray:
+        """(N,) the subtask bonus (INEST: completed subtasks x bonus)."""
+        return self.parts.bonus
+
+    @property
+    def subtask(self) -> np.ndarray:
+        """(N,) the tracker's current subtask on each frame (after the update)."""
+        return self.parts.subtask
+
+    @property
+    def completed(self) -> np.ndarray:
+        """(N,) subtasks completed so far."""
+        return self.parts.completed
+
+    def completion_events(self, subtask: int) -> list[int]:
+        """Every frame on which the tracker marked `subtask` done: `completed` rose past it there.
+        One frame for a latched tracker; a tracker that reopens subtasks may mark one done again."""
+        done = self.parts.completed > subtask
+        return np.flatnonzero(done & ~np.concatenate([[False], done[:-1]])).tolist()
+
+    @property
+    def completion_frames(self) -> list[int]:
+        """For each subtask in order, the frame on which the tracker first marked it done (for a latched
+        tracker: its switches), up to the first subtask it never completed."""
+        frames = []
+        for subtask in range(self.num_subtasks):
+            events = self.completion_events(subtask)
+            if not events:
+                break
+            frames.append(events[0])
+        return frames
+
+    @property
     def all_completed(self) -> bool:
+        """The tracker marked every subtask done at some frame."""
         return len(self.completion_frames) == self.num_subtasks
 
 
-def replay(model: RewardModel, embeddings: np.ndarray, scheme: int, variant: str | None = None) -> Replay:
-    """Feed one episode's embeddings, in order, through a fresh scorer (no intrinsic bonus)."""
-    scorer = RewardScorer(model, scheme, variant)
-    per_subtask = subtask_rewards(model, embeddings, scorer.goals)
-    steps = [
-        scorer.advance(row[None], embedding[None], None) for row, embedding in zip(per_subtask, embeddings, strict=True)
-    ]
-    return Replay(
-        np.array([step.total[0] for step in steps]),
-        np.array([step.subtask[0] for step in steps]),
-        np.array([step.completed[0] for step in steps]),
-        [frame for frame, step in enumerate(steps) if step.switched[0]],
-        scorer.num_subtasks,
-    )
+def replay(
+    model: RewardModel,
+    embeddings: np.ndarray,
+    scheme: int,
+    variant: str | None = None,
+    scorer_options: dict[str, object] | None = None,
+) -> Replay:
+    """Feed one episode's embeddings, in order, through a fresh scorer: `RewardScorer(model,
+    scheme, variant, **scorer_options)` (no intrinsic bonus unless the options ask for one),
+    all frames in one `score_embeddings` call as rows of environment 0, one round per frame."""
+    scorer = RewardScorer(model, scheme, variant, **(scorer_options or {}))
+    frames = len(embeddings)
+    parts = scorer.score_embeddings(np.asarray(embeddings), envs=np.zeros(frames, dtype=int), rounds=np.arange(frames))
+    return Replay(parts, scorer.num_subtasks)

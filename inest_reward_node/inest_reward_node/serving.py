@@ -65,9 +65,13 @@ class ServingStats:
 
 
 class StreamScorer:
-    """Batches frames from several streams into one scorer, one tracker per stream."""
+    """Batches frames from several streams into one scorer, one tracker per stream. The scorer's
+    RewardConfig (the node's `reward.*` parameters) decides shaping and tracker; a tracker may now
+    reopen a subtask, so a stream's `subtask` can go down."""
 
     def __init__(self, scorer: RewardScorer, max_pending: int = 4) -> None:
+        if scorer.config.stage_source == "privileged":
+            raise ValueError("a privileged stage (a diagnostic) needs state vectors; served streams carry images only")
         self.scorer = scorer
         self.max_pending = max_pending  # per stream: older waiting frames are dropped (counted)
         self.pending: list[deque[tuple[int, np.ndarray, float, str]]] = [deque() for _ in range(scorer.num_envs)]
@@ -131,7 +135,7 @@ class StreamScorer:
                 float(parts.distance[index]),
                 float(parts.bonus[index]),
                 float(parts.intrinsic[index]),
-                int(parts.subtask[index]),
+                int(parts.completed[index]),  # the stage: == num_subtasks once all are done
                 bool(parts.switched[index]),
                 arrived,
                 frame_id,

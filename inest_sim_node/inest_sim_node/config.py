@@ -14,6 +14,7 @@ from typing import Any
 VIEWS = ("ego", "allo")
 OBSERVATIONS = ("state", "pixels", "state_pixels")
 LAYOUTS = ("random", "demo")
+ORACLE_REWARDS = ("progress", "approach")  # scoring.dense_reward without / with its approach parts
 
 
 @dataclass(frozen=True)
@@ -82,12 +83,15 @@ class EnvConfig:
     image_size: int = 96  # square side in pixels; 96 keeps the ResNet-18 fast on 2 CPU cores
     render_size: int = 256  # size of env.render() frames, for people watching
     max_steps: int = 100
+    reward: str = "progress"  # the oracle (scoring.dense_reward): "progress" or "approach" (+ reach and hold)
     world: WorldConfig = field(default_factory=WorldConfig)
     layout: LayoutConfig = field(default_factory=LayoutConfig)
 
     def __post_init__(self) -> None:
         if self.observation not in OBSERVATIONS:
             raise ValueError(f"unknown observation {self.observation!r}; expected one of {OBSERVATIONS}")
+        if self.reward not in ORACLE_REWARDS:
+            raise ValueError(f"unknown oracle reward {self.reward!r}; expected one of {ORACLE_REWARDS}")
         if self.view not in VIEWS:
             raise ValueError(f"unknown view {self.view!r}; expected one of {VIEWS}")
         for name in ("image_size", "render_size", "max_steps"):

@@ -43,9 +43,10 @@ def validate_action(action: Any) -> np.ndarray:
 class SweepToTopEnv(gym.Env):
     """Push red, then blue, then yellow into the green strip at the top.
 
-    Reward: the dense, order-aware oracle reward (`scoring.dense_reward`); learned rewards
-    replace it in wrappers. Episodes never terminate early; they are truncated after
-    `max_steps`. `info["score"]` is the ordered score k / 3 at every step.
+    Reward: the dense, order-aware oracle reward (`scoring.dense_reward`, with
+    `reward="approach"` also paying for reaching and holding the current block); learned
+    rewards replace it in wrappers. Episodes never terminate early; they are truncated after `max_steps`.
+    `info["score"]` is the ordered score k / 3 at every step.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 8}
@@ -109,7 +110,7 @@ class SweepToTopEnv(gym.Env):
         self.world.step()
         self._steps += 1
         self._refresh()
-        reward = dense_reward(self._tracker.progress, self._gaps, self._gap_scale)
+        reward = dense_reward(self.progress, self._gaps, self._gap_scale, self._approach())
         truncated = self._steps >= self.config.max_steps
         return self._observation(), reward, False, truncated, self._info()
 
@@ -148,6 +149,14 @@ class SweepToTopEnv(gym.Env):
         state = np.concatenate([head, blocks.ravel(), robot_dist, self._gaps, in_goal, [progress]])
         # Contacts may push a body a hair past a wall; keep the vector inside its declared space.
         return np.clip(state, self._state_space.low, self._state_space.high).astype(np.float32)
+
+    def _approach(self) -> tuple[float, bool] | None:
+        """The approach oracle's (robot-to-current-block distance, block held), if it is the reward."""
+        if self.config.reward != "approach" or self.progress >= len(BLOCK_COLOURS):
+            return None
+        x, y, _ = self.world.robot_pose
+        block = self.progress
+        return float(np.hypot(*(self.world.block_xy[block] - (x, y)))), self.world.in_gripper(block)
 
     def _refresh(self) -> None:
         assert self.world is not None

@@ -6,6 +6,11 @@ from the block just placed, then either reverses straight to a point below the n
 with its fingers turned away from the nearer wall, turns up, pushes the block between
 open fingers (closing on it once held), and lets go when the block counts. Per-episode
 style parameters and action noise keep the demonstrations from being all alike.
+
+`ScriptedExpert(order=...)` makes it place the blocks in another order, for negative episodes
+(e.g. `WRONG_ORDER`, blue first: the environment then never counts more than red). With the
+default `TASK_ORDER` it follows the environment's ordered progress and draws exactly the same
+random numbers as without the option.
 """
 
 from __future__ import annotations
@@ -16,7 +21,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .env import SweepToTopEnv
-from .world import World
+from .scoring import OrderTracker
+from .world import BLOCK_COLOURS, World
+
+TASK_ORDER: tuple[int, ...] = tuple(range(len(BLOCK_COLOURS)))  # red, blue, yellow: the task's order
+WRONG_ORDER: tuple[int, ...] = (1, 0, 2)  # blue first, then red, then yellow: a negative for the task
 
 
 @dataclass(frozen=True)
@@ -49,11 +58,30 @@ def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
-class ScriptedExpert:
-    """Maps the current world to an action; call `reset` at the start of every episode."""
+def check_order(order: tuple[int, ...]) -> tuple[int, ...]:
+    """A block order: distinct block indices (0 red, 1 blue, 2 yellow), at least one."""
+    order = tuple(int(block) for block in order)
+    if not order or len(set(order)) != len(order) or not set(order) <= set(TASK_ORDER):
+        raise ValueError(f"order must list distinct block indices from {TASK_ORDER}, got {order}")
+    return order
 
-    def __init__(self, config: ExpertConfig | None = None, seed: int | None = None) -> None:
+
+class ScriptedExpert:
+    """Maps the current world to an action; call `reset` at the start of every episode.
+
+    `order`: the blocks to place, in the order to place them (block indices, 0 red, 1 blue,
+    2 yellow). The default is the task's order, judged by the environment's own ordered progress.
+    Any other order is judged by the expert's own copy of the ordering rule applied to that order
+    (a block counts once it is in the goal after the blocks listed before it); the expert stops
+    once every listed block counts. The order is not part of `ExpertConfig`, so datasets recorded
+    before it existed keep their configuration record (and stay resumable).
+    """
+
+    def __init__(
+        self, config: ExpertConfig | None = None, seed: int | None = None, order: tuple[int, ...] = TASK_ORDER
+    ) -> None:
         self.config = config or ExpertConfig()
+        self.order = check_order(order)
         self.rng = np.random.default_rng(seed)
         self.reset()
 
@@ -71,25 +99,35 @@ class ScriptedExpert:
         self.phase = "plan"
         self.lane_y = 0.0
         self.facing = 0.0
-        self._block = 0
+        self._block = 0  # blocks of `order` placed so far, as of the previous step
+        self._placed = OrderTracker(len(self.order))  # only consulted for an order other than TASK_ORDER
+
+    def placed(self, env: SweepToTopEnv) -> int:
+        """How many blocks of `order` count as placed now (the environment's progress for TASK_ORDER)."""
+        if self.order == TASK_ORDER:
+            return env.progress
+        assert env.world is not None
+        in_goal = env.world.block_goal_gaps() == 0.0
+        return self._placed.update(in_goal[list(self.order)], env.elapsed_steps)
 
     def act(self, env: SweepToTopEnv) -> np.ndarray:
         world = env.world
         if world is None:
             raise RuntimeError("reset the environment before asking the expert to act")
         self.world_config = world.config
-        block = env.progress
-        if block >= len(world.block_bodies):
+        placed = self.placed(env)
+        if placed >= len(self.order):
             return np.array([0.0, 0.0, -1.0])
-        if block != self._block:  # the previous block just counted: let go, then back away
-            self._block, self.phase = block, "release"
-        speed, turn, grip = self._control(world, block)
+        if placed != self._block:  # the previous block just counted: let go, then back away
+            self._block, self.phase = placed, "release"
+        speed, turn, grip = self._control(world, placed)
         noise = self.rng.normal(0.0, self.config.action_noise, size=2) if self.config.action_noise else (0.0, 0.0)
         return np.clip(np.array([speed + noise[0], turn + noise[1], grip]), -1.0, 1.0)
 
     # --- the plan -------------------------------------------------------------------
-    def _control(self, world: World, block: int) -> tuple[float, float, float]:
-        """One step of the plan; each phase either acts or hands over to the next one."""
+    def _control(self, world: World, placed: int) -> tuple[float, float, float]:
+        """One step of the plan for the next block of `order`; each phase either acts or hands over."""
+        block = self.order[placed]
         x, y, angle = world.robot_pose
         bx, by = world.block_xy[block]
         target_x = bx + self.lateral
@@ -98,7 +136,7 @@ class ScriptedExpert:
             return 0.0, 0.0, -1.0
         if self.phase == "back_off":
             # Straight back, no turning, until the fingers are clear of the block just placed.
-            if math.dist((x, y), world.block_xy[block - 1]) < 0.5:
+            if math.dist((x, y), world.block_xy[self.order[placed - 1]]) < 0.5:
                 return -self.speed, 0.0, -1.0
             self.phase = "plan"
         if self.phase == "plan":
@@ -106,7 +144,7 @@ class ScriptedExpert:
             lowest = -world.config.arena_half_size + 1.5 * world.config.robot_radius
             self.lane_y = max(lowest, min(y, by - self.standoff - self.lane_depth))
             self.facing = self._lateral_facing(x, target_x)
-            self.phase = "swoop" if self._can_swoop(world, block, (target_x, self.lane_y)) else "descend"
+            self.phase = "swoop" if self._can_swoop(world, placed, (target_x, self.lane_y)) else "descend"
         if self.phase == "swoop":
             # One straight reverse to below the block; the fingers trail away from it.
             if math.dist((x, y), (target_x, self.lane_y)) > 0.06:
@@ -146,14 +184,14 @@ class ScriptedExpert:
         speed, turn = self._drive_to(world, (bx, by + 0.5), reverse_ok=False)
         return speed, turn, grip
 
-    def _can_swoop(self, world: World, block: int, target: tuple[float, float]) -> bool:
+    def _can_swoop(self, world: World, placed: int, target: tuple[float, float]) -> bool:
         """A reverse drive straight to `target`: steep enough and clear of blocks still to place."""
         start = np.array(world.robot_pose[:2])
         segment = np.asarray(target) - start
         if not self.swoops or segment[1] > -0.2 or abs(segment[0]) > 1.5 * -segment[1]:
             return False
         clearance = world.config.robot_radius + 0.75 * world.config.block_side
-        for centre in world.block_xy[block:]:
+        for centre in world.block_xy[list(self.order[placed:])]:
             along = np.clip((centre - start) @ segment / (segment @ segment), 0.0, 1.0)
             if np.linalg.norm(start + along * segment - centre) < clearance:
                 return False

@@ -58,14 +58,31 @@ class OrderTracker:
         return self.progress / len(self.entry_steps)
 
 
-def dense_reward(progress: int, goal_gaps: np.ndarray, gap_scale: float) -> float:
-    """Oracle reward in [0, 1]: a third per ordered block placed, plus the current block's closeness.
+APPROACH_REACH = 1.5  # robot-to-block distance from which the approach oracle starts paying
+APPROACH_WEIGHTS = (0.5, 0.35, 0.15)  # a block's third: closeness, approach, held
+
+
+def dense_reward(
+    progress: int, goal_gaps: np.ndarray, gap_scale: float, approach: tuple[float, bool] | None = None
+) -> float:
+    """Oracle reward in [0, 1]: a third per ordered block placed, plus the current block's progress.
 
     The current block is the first one not yet counted; its closeness is
-    1 - min(1, gap / gap_scale), gap being how far it still sticks out below the goal.
+    1 - min(1, gap / gap_scale), gap being how far it still sticks out below the goal. Without
+    `approach` that closeness is the block's progress. With `approach` = (robot-to-block
+    distance, block held in the gripper) the block's third is shared by closeness, approach
+    (1 - min(1, distance / APPROACH_REACH)) and holding, by APPROACH_WEIGHTS: the dense reward
+    alone is flat until the block moves, so nothing leads the robot from one placed block to
+    the next. Every part stays inside the block's third, so no state of a stage pays more than
+    placing its block (a bonus added on top made hovering next to the last block worth more
+    than finishing the task).
     """
     num_blocks = len(goal_gaps)
     if progress >= num_blocks:
         return 1.0
     closeness = 1.0 - min(1.0, float(goal_gaps[progress]) / gap_scale)
+    if approach is not None:
+        distance, held = approach
+        parts = (closeness, 1.0 - min(1.0, distance / APPROACH_REACH), float(held))
+        closeness = float(np.dot(APPROACH_WEIGHTS, parts))
     return (progress + closeness) / num_blocks

@@ -31,30 +31,37 @@ DESCRIPTIONS: dict[int, tuple[str, ...]] = {
 }
 
 
-def completed_subtasks(progress: np.ndarray, held: np.ndarray, scheme: int) -> np.ndarray:
-    """Number of subtasks completed at each frame (never decreasing).
+def current_subtasks(progress: np.ndarray, held: np.ndarray | None, scheme: int) -> np.ndarray:
+    """Number of subtasks done at each frame right now (not latched: a block pushed out again
+    undoes its subtask).
 
     `progress[t]` is the ordered block count at frame t, `held[t]` whether the current
-    block sits in the gripper at frame t.
+    block sits in the gripper at frame t (needed by the 6-subtask scheme only: its reach/grasp
+    subtask stays done until the progress changes).
     """
     progress = np.asarray(progress, dtype=np.int64)
     num_blocks = len(BLOCK_COLOURS)
     if scheme == 1:
-        done = (progress >= num_blocks).astype(np.int64)
-    elif scheme == 3:
-        done = progress.copy()
-    elif scheme == 6:
-        reached = np.zeros_like(progress)
-        latched = False
-        for t in range(len(progress)):
-            if t > 0 and progress[t] != progress[t - 1]:
-                latched = False
-            latched = latched or bool(held[t])
-            reached[t] = 1 if latched and progress[t] < num_blocks else 0
-        done = 2 * progress + reached
-    else:
+        return (progress >= num_blocks).astype(np.int64)
+    if scheme == 3:
+        return progress.copy()
+    if scheme != 6:
         raise ValueError(f"unknown subtask scheme {scheme}; expected one of {SCHEMES}")
-    return np.maximum.accumulate(done)
+    if held is None:
+        raise ValueError("the 6-subtask scheme needs the per-frame grasp flags")
+    reached = np.zeros_like(progress)
+    latched = False
+    for t in range(len(progress)):
+        if t > 0 and progress[t] != progress[t - 1]:
+            latched = False
+        latched = latched or bool(held[t])
+        reached[t] = 1 if latched and progress[t] < num_blocks else 0
+    return 2 * progress + reached
+
+
+def completed_subtasks(progress: np.ndarray, held: np.ndarray, scheme: int) -> np.ndarray:
+    """Number of subtasks completed at each frame (never decreasing), as the demonstrations label them."""
+    return np.maximum.accumulate(current_subtasks(progress, held, scheme))
 
 
 def subtask_labels(progress: np.ndarray, held: np.ndarray, scheme: int) -> tuple[np.ndarray, np.ndarray]:

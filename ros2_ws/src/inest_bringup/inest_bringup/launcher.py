@@ -85,10 +85,11 @@ def node_commands(args: argparse.Namespace, run_dir: Path) -> list[tuple[str, li
         commands.append(
             (namespace, [executable("inest-sim-node"), *params, "-r", f"__ns:=/{namespace}", *clock, *extra["sim"]])
         )
-    reward = ["-p", f"streams:={listed}"] + (["-p", f"model:={args.model}"] if args.model else [])
+    model = ["-p", f"model:={args.model}"] if args.model else []
+    reward = ["-p", f"streams:={listed}", *model]
     commands.append(("reward", [executable("inest-reward-node"), *params, *reward, *extra["reward"]]))
     if not args.no_agent:
-        agent = ["-p", f"namespaces:={listed}", "-p", f"out:={run_dir / 'agent'}"]
+        agent = ["-p", f"namespaces:={listed}", "-p", f"out:={run_dir / 'agent'}", *model]
         if args.steps is not None:
             agent += ["-p", f"total_steps:={args.steps}"]
         if args.resume:

@@ -1,0 +1,128 @@
+"""`inest-summarise ROOT`: one table of the training runs under ROOT/<method>/<run>/, across seeds.
+
+Writes ROOT/summary.json (per run: method, seed, steps, mean_score, success_rate, blocks_share,
+from its 150-episode final evaluation; per method: the mean over seeds with a 95 % bootstrap
+interval) and ROOT/learning_curves.png (per method the mean evaluation score across seeds, with
+the band between the lowest and highest seed). A run still training (its checkpoint's
+history.json, or a copy of it beside config.json, and no results.json yet) is listed with
+`"final": false` and its last periodic evaluation, and is left out of the per-method means.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .train import CHECKPOINT_DIR, HISTORY_FILE, RESULTS_FILE
+
+SUMMARY_FILE = "summary.json"
+CURVES_FILE = "learning_curves.png"
+
+
+def read_run(run_dir: Path) -> dict[str, Any] | None:
+    """The run's final result, or its last periodic evaluation while it is still training."""
+    config = json.loads((run_dir / "config.json").read_text()) if (run_dir / "config.json").exists() else {}
+    row: dict[str, Any] = {"method": run_dir.parent.name, "run": run_dir.name, "seed": config.get("seed")}
+    if (run_dir / RESULTS_FILE).exists():
+        results = json.loads((run_dir / RESULTS_FILE).read_text())
+        final = results["final_evaluation"]
+        row.update(
+            final=True,
+            steps=results["steps"],
+            episodes=final["episodes"],
+            mean_score=final["mean_score"],
+            success_rate=final["success_rate"],
+            blocks_share=final["blocks_share"],
+        )
+        row["curve"] = results["learning_curve"]
+        return row
+    histories = [path for path in (run_dir / CHECKPOINT_DIR / HISTORY_FILE, run_dir / HISTORY_FILE) if path.exists()]
+    if not histories:
+        return None
+    curve = json.loads(histories[0].read_text())
+    if not curve:
+        return None
+    row.update(final=False, steps=int(curve[-1][0]), mean_score=curve[-1][1], curve=curve)
+    return row
+
+
+def bootstrap_interval(values: list[float], samples: int = 10_000, seed: int = 0) -> list[float]:
+    """95 % bootstrap interval of the mean over seeds."""
+    rng = np.random.default_rng(seed)
+    data = np.asarray(values, dtype=float)
+    means = rng.choice(data, size=(samples, len(data))).mean(axis=1)
+    return [float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))]
+
+
+def summarise(root: Path) -> dict[str, Any]:
+    rows = [row for path in sorted(root.glob("*/*/config.json")) if (row := read_run(path.parent)) is not None]
+    methods: dict[str, Any] = {}
+    for method in sorted({row["method"] for row in rows}):
+        finals = [row for row in rows if row["method"] == method and row["final"]]
+        if not finals:
+            continue
+        scores = [row["mean_score"] for row in finals]
+        methods[method] = {
+            "seeds": len(finals),
+            "steps": sorted({row["steps"] for row in finals}),
+            "mean_score": float(np.mean(scores)),
+            "mean_score_ci95": bootstrap_interval(scores),
+            "success_rate": float(np.mean([row["success_rate"] for row in finals])),
+            "blocks_share": np.mean([row["blocks_share"] for row in finals], axis=0).tolist(),
+        }
+    return {"runs": rows, "methods": methods}
+
+
+def plot_curves(rows: list[dict[str, Any]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(7, 4))
+    for method in sorted({row["method"] for row in rows}):
+        curves = [np.asarray(row["curve"], dtype=float) for row in rows if row["method"] == method]
+        length = min(len(curve) for curve in curves)
+        steps = curves[0][:length, 0]
+        scores = np.stack([curve[:length, 1] for curve in curves])
+        axis.plot(steps, scores.mean(axis=0), label=f"{method} ({len(curves)} seeds)")
+        axis.fill_between(steps, scores.min(axis=0), scores.max(axis=0), alpha=0.2)
+    axis.set(xlabel="environment steps", ylabel="evaluation score (50 episodes)", ylim=(0, 1.02))
+    axis.set_title("mean over seeds; band: lowest to highest seed")
+    axis.legend(fontsize=8)
+    figure.tight_layout()
+    figure.savefig(path, dpi=100)
+    plt.close(figure)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("root", type=Path, help="folder of <method>/<run>/ training runs")
+    args = parser.parse_args(argv)
+    if not args.root.is_dir():
+        print(f"inest-summarise: {args.root} is not a folder", file=sys.stderr)
+        return 2
+    summary = summarise(args.root)
+    if not summary["runs"]:
+        print(f"inest-summarise: no training runs under {args.root}/<method>/<run>/", file=sys.stderr)
+        return 2
+    plot_curves(summary["runs"], args.root / CURVES_FILE)
+    runs = [{key: value for key, value in row.items() if key != "curve"} for row in summary["runs"]]
+    (args.root / SUMMARY_FILE).write_text(json.dumps({**summary, "runs": runs}, indent=2) + "\n")
+    for method, entry in summary["methods"].items():
+        low, high = entry["mean_score_ci95"]
+        print(
+            f"{method:<24} {entry['seeds']} seeds  score {entry['mean_score']:.3f} [{low:.3f}, {high:.3f}]"
+            f"  success {entry['success_rate']:.1%}"
+        )
+    print(f"wrote {args.root / SUMMARY_FILE} and {CURVES_FILE}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

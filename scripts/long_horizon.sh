@@ -1,0 +1,63 @@
+#!/usr/bin/env bash
+# The long-horizon result set: every cell below trained in runs/long-horizon/<method>/seed<N>/,
+# two at a time on one torch/JAX thread each; a killed run resumes from its last checkpoint when
+# this is run again, and a finished one is skipped. Then the small files of every run (results,
+# config, plots; no checkpoints) are copied to results/long-horizon/ with summary.json and
+# learning_curves.png (inest-summarise).
+#   bash scripts/long_horizon.sh [METHOD ...]     # default: all methods
+# Environment: INEST_MODEL (reward model folder, default results/long-horizon/reward-model),
+# INEST_SEEDS (default "0 1 2"), INEST_PARALLEL (default 2).
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+BIN="${INEST_VENV:-$ROOT/.venv}/bin"
+MODEL="${INEST_MODEL:-results/long-horizon/reward-model}"
+RUNS=runs/long-horizon
+CONFIG=inest_agent_node/config/train.yaml
+
+declare -A METHODS=(
+  [oracle]="--reward env --total-steps 300000"
+  [oracle-state-obs]="--reward env --observation state --total-steps 300000"
+  [inest3-embedding]="--reward inest --model $MODEL --intrinsic embedding --total-steps 300000"
+  [inest3-none]="--reward inest --model $MODEL --intrinsic none --total-steps 300000"
+  [inest3-embedding-state-obs]="--reward inest --model $MODEL --intrinsic embedding --observation state --total-steps 300000"
+)
+selected=("$@")
+[ ${#selected[@]} -gt 0 ] || selected=(oracle inest3-embedding inest3-none oracle-state-obs inest3-embedding-state-obs)
+
+cells=()
+for method in "${selected[@]}"; do
+  [ -n "${METHODS[$method]+x}" ] || { echo "long_horizon: unknown method $method (${!METHODS[*]})" >&2; exit 2; }
+  for seed in ${INEST_SEEDS:-0 1 2}; do cells+=("$method $seed"); done
+done
+
+run_cell() {
+  local method=$1 seed=$2 out="$RUNS/$1/seed$2"
+  [ -f "$out/results.json" ] && return 0
+  local resume=()
+  [ -f "$out/config.json" ] && resume=(--resume)
+  mkdir -p "$RUNS/$method"
+  # shellcheck disable=SC2086  # METHODS entries are flag lists
+  "$BIN/inest-train" --config "$CONFIG" --out "$out" --seed "$seed" --threads 1 \
+    ${METHODS[$method]} "${resume[@]}" >"$out.log" 2>&1 \
+    || echo "long_horizon: $method seed $seed failed; see $out.log" >&2
+}
+
+running=0
+for cell in "${cells[@]}"; do
+  # shellcheck disable=SC2086
+  run_cell $cell &
+  running=$((running + 1))
+  if [ "$running" -ge "${INEST_PARALLEL:-2}" ]; then wait -n; running=$((running - 1)); fi
+done
+wait
+
+for run in "$RUNS"/*/seed*/; do
+  target="results/long-horizon/${run#"$RUNS"/}"
+  mkdir -p "$target"
+  for file in config.json results.json learning_curve.png coverage.png; do
+    [ -f "$run/$file" ] && cp "$run/$file" "$target/"
+  done
+  [ -f "$run/checkpoint/history.json" ] && [ ! -f "$run/results.json" ] && cp "$run/checkpoint/history.json" "$target/"
+done
+"$BIN/inest-summarise" results/long-horizon

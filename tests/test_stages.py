@@ -1,0 +1,344 @@
+"""RewardConfig: progress shaping, the honest trackers (reopening, stage classifier), the privileged
+diagnostic, the intrinsic cap, and models calibrated before any of them."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+from inest_reward_node.intrinsic import IntrinsicConfig
+from inest_reward_node.model import MODEL_FILE, ModelError, load_model
+from inest_reward_node.rewards import RewardScorer, goal_distances
+from inest_reward_node.stages import (
+    ClassifierTracker,
+    ConfirmedTracker,
+    ReopeningTracker,
+    RewardConfig,
+    StageClassifier,
+    demo_stages,
+    fit_stage_classifier,
+    true_stages,
+)
+from test_scorer import line_model
+
+PROGRESS = 20  # STATE_FIELDS index of ordered_progress
+
+
+def run(scorer: RewardScorer, xs, states=None) -> list:
+    """Score frames at x positions on the line model, one at a time."""
+    return [
+        scorer.score_embeddings(np.array([[x, 0.0]]), None if states is None else states[i : i + 1])
+        for i, x in enumerate(xs)
+    ]
+
+
+def approach_all_goals() -> list[float]:
+    """From x = -10 towards goal 0 (x = 0), then goal 1 (10), then goal 2 (20), a few frames at each goal."""
+    xs: list[float] = []
+    for goal in (0.0, 10.0, 20.0):
+        xs += [*np.linspace(goal - 10.0, goal, 11)[1:], goal, goal]
+    return xs
+
+
+def test_reward_config_validates_its_fields():
+    assert RewardConfig().cap == np.inf
+    for bad in (
+        {"shaping": "cubic"},
+        {"tracker": "vibes"},
+        {"stage_source": "oracle"},
+        {"hold_steps": -1},
+        {"stage_confidence": 1.0},
+        {"confirm_window": -1},
+        {"intrinsic_cap": 0.0},
+        {"intrinsic_cap": float("nan")},
+    ):
+        with pytest.raises(ValueError):
+            RewardConfig(**bad)
+
+
+@pytest.mark.parametrize("stage_source", ["tracker", "privileged"])
+@pytest.mark.parametrize("shaping", ["progress", "segment"])
+def test_progress_shaping_rises_within_every_subtask_and_never_dips_at_a_switch(shaping, stage_source):
+    xs = approach_all_goals()
+    config = RewardConfig(shaping=shaping, stage_source=stage_source)
+    scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=config)
+    progress = np.clip(np.floor(np.array(xs) / 10.0) + 1, 0, 3)  # the line's "true" stage: goal k reached
+    states = np.zeros((len(xs), 21), np.float32)
+    states[:, PROGRESS] = progress / 3
+    steps = run(scorer, xs, states if stage_source == "privileged" else None)
+    total = np.array([s.total[0] for s in steps])
+    completed = np.array([s.completed[0] for s in steps])
+    assert completed[-1] == 3 and np.all(np.diff(completed) >= 0)
+    assert np.all(np.diff(total) >= -1e-12)  # rises within each subtask, continuous (never dips) at a switch
+    switches = [i for i, s in enumerate(steps) if s.switched[0]]
+    assert len(switches) == 3
+    for frame in switches:  # at a switch: bonus x (c + 1 + closeness to the next goal), above the frame before
+        assert total[frame] >= total[frame - 1]
+        assert total[frame] - total[frame - 1] < 1.0  # no jump of a whole bonus either
+    assert total[-1] == pytest.approx(6.0) and steps[-1].distance[0] == 0.0  # B K once done
+    # before the first completion the reward is B x closeness to goal 0: 1 - d / 10
+    assert total[0] == pytest.approx(2.0 * (1 - 9.0 / 10.0))
+
+
+@pytest.mark.parametrize("shaping", ["progress", "segment"])
+def test_progress_shaping_with_one_subtask_uses_the_single_goal(shaping):
+    scorer = RewardScorer(line_model(), scheme=1, variant="inest", config=RewardConfig(shaping=shaping))
+    steps = run(scorer, [-10.0, 5.0, 20.0, 20.0, 20.0])
+    assert [s.total[0] for s in steps[:2]] == pytest.approx([0.0, 2.0 * (1 - 15.0 / 30.0)])
+    assert steps[-1].completed[0] == 1 and steps[-1].total[0] == pytest.approx(2.0)
+
+
+def test_segment_shaping_is_where_the_frame_sits_between_start_and_goal():
+    scorer = RewardScorer(line_model(), scheme=3, config=RewardConfig(shaping="segment", tracker="threshold"))
+    # subtask 0 runs from (-10, 0) to (0, 0): 3 from the start and 7 from the goal, off the line by 4
+    off_line = scorer.score_embeddings(np.array([[-10.0 + 3.0, 4.0]]))
+    s, d = np.hypot(3.0, 4.0), np.hypot(7.0, 4.0)
+    assert off_line.total[0] == pytest.approx(2.0 * s / (s + d))
+    # frames beyond the goal still count as close to it; the distance-based closeness would too
+    assert scorer.score_embeddings(np.array([[1.0, 0.0]])).total[0] == pytest.approx(2.0 * 11.0 / 12.0)
+
+
+def test_raw_shaping_is_r_of_the_raw_distance():
+    config = RewardConfig(shaping="raw", tracker="threshold")
+    model = line_model()
+    model.subtasks[3].distance_scale = 0.01  # r(d) in rescaled units would now differ: raw ignores the scale
+    scorer = RewardScorer(model, scheme=3, config=config)
+    from inest_reward_node.shaping import distance_reward
+
+    assert scorer.score_embeddings(np.array([[4.0, 3.0]])).total[0] == pytest.approx(
+        distance_reward(5.0, model.shaping)
+    )
+
+
+def test_the_classifier_tracker_does_not_fire_on_frames_the_classifier_calls_stage_0():
+    model = line_model(hold_steps=2)
+    never = model.subtasks[3].stage_classifier.to_dict()
+    never["out_bias"] = [50.0, 0.0, 0.0, 0.0]  # stage 0, whatever the frame
+    model.subtasks[3].stage_classifier = StageClassifier.from_dict(never)
+    threshold = RewardScorer(model, scheme=3, config=RewardConfig(tracker="threshold"))
+    at_goal = [0.0] * 30  # r(d) above the threshold: the counter completes subtask 0
+    assert run(threshold, at_goal)[-1].completed[0] == 1
+    for tracker in ("classifier", "confirmed"):
+        honest = RewardScorer(model, scheme=3, config=RewardConfig(tracker=tracker))
+        assert all(s.completed[0] == 0 and not s.switched[0] for s in run(honest, at_goal))
+
+
+def test_the_classifier_tracker_reopens_a_subtask_that_is_undone():
+    scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=RewardConfig(tracker="classifier"))
+    done = run(scorer, [0.0, 0.0, 5.0])
+    assert done[1].switched[0] and done[-1].completed[0] == 1 and done[-1].bonus[0] == 2.0
+    back = run(scorer, [-5.0, 5.0, -5.0, -5.0])  # one frame back is not enough; two in a row are
+    assert [s.completed[0] for s in back] == [1, 1, 1, 0]
+    assert not any(s.switched[0] for s in back)  # switched marks upward switches only
+    assert back[-1].bonus[0] == 0.0 and back[-1].subtask[0] == 0
+    # the progress reward drops with it: undoing progress is not paid for
+    assert back[-1].total[0] < done[-1].total[0] - 1.0
+    again = run(scorer, [0.0, 0.0])
+    assert again[-1].switched[0] and again[-1].completed[0] == 1
+
+
+def test_the_classifier_tracker_moves_one_stage_at_a_time_with_hysteresis():
+    tracker = ClassifierTracker(3, hold_steps=2, confidence=0.5)
+    sure_of_three = np.array([1.0, 1.0, 1.0, 1.0])  # P(stage >= j) for j = 0..3
+    assert [tracker.step(sure_of_three) for _ in range(6)] == [0, 1, 0, 1, 0, 1]
+    assert tracker.done and tracker.step(sure_of_three) == 0
+    unsure = np.array([1.0, 0.9, 0.6, 0.4])  # below 3, at least 2: stays at 2 once there
+    assert [tracker.step(unsure) for _ in range(3)] == [0, -1, 0]
+    assert tracker.completed == 2
+    tracker.reset()
+    assert (tracker.completed, tracker.up_streak, tracker.down_streak) == (0, 0, 0)
+
+
+# (threshold-test rewards against goals 0 and 1, segment closeness for subtasks 0 and 1), thresholds -0.02
+AT_GOAL_0 = (np.array([0.0, -0.5]), np.array([1.0, 0.0]))
+MOVED_ON = (np.array([-0.5, -0.3]), np.array([0.8, 0.3]))  # left goal 0, past it: on to subtask 1
+PUSHED_BACK = (np.array([-0.5, -0.6]), np.array([0.2, 0.0]))  # left goal 0, looks like subtask 0's first half
+
+
+def test_the_reopening_tracker_reopens_once_the_frames_look_like_the_subtasks_first_half():
+    tracker = ReopeningTracker([-0.02, -0.02], hold_steps=2)
+    assert [tracker.step(*AT_GOAL_0) for _ in range(2)] == [0, 1]
+    assert [tracker.step(*MOVED_ON) for _ in range(3)] == [0, 0, 0]
+    assert [tracker.step(*PUSHED_BACK) for _ in range(2)] == [0, -1]
+    assert tracker.completed == 0
+
+
+def test_the_confirmed_tracker_needs_the_threshold_test_and_then_the_classifier():
+    says_0, says_1 = np.array([1.0, 0.1, 0.0]), np.array([1.0, 0.9, 0.1])  # P(stage >= j), j = 0..2
+    tracker = ConfirmedTracker([-0.02, -0.02], hold_steps=2, confidence=0.5, window=3)
+    assert [tracker.step(*AT_GOAL_0, says_0) for _ in range(5)] == [0] * 5  # the classifier disagrees
+    assert [tracker.step(*MOVED_ON, says_1) for _ in range(3)] == [0, 0, 0]  # too late: the window is over
+    assert [tracker.step(*AT_GOAL_0, says_1) for _ in range(3)] == [0, 0, 1]  # test held twice, then agreed twice
+    # the classifier may lag: it agrees after the threshold test has stopped holding, within the window
+    tracker.reset()
+    steps = [tracker.step(*AT_GOAL_0, says_0) for _ in range(2)] + [tracker.step(*MOVED_ON, says_1) for _ in range(2)]
+    assert steps == [0, 0, 0, 1] and tracker.completed == 1
+    assert [tracker.step(*PUSHED_BACK, says_1) for _ in range(2)] == [0, -1]  # and reopens
+
+
+def test_the_reopening_trackers_in_the_scorer():
+    # reopening completes once the threshold test holds twice; confirmed then waits for the classifier
+    expected = {"reopening": [0, 1, 1, 1, 1, 1, 0], "confirmed": [0, 0, 1, 1, 1, 1, 0]}
+    for tracker, stages in expected.items():
+        scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=RewardConfig("progress", tracker))
+        steps = run(scorer, [0.0, 0.0, 0.0, 3.0, 3.0, -6.0, -6.0])  # x = 3: past goal 0; x = -6: back before it
+        assert [s.completed[0] for s in steps] == stages, tracker
+
+
+def test_privileged_stage_follows_the_true_progress():
+    scorer = RewardScorer(line_model(), scheme=3, num_envs=2, config=RewardConfig(stage_source="privileged"))
+    states = np.zeros((2, 21), np.float32)
+    for k, expected_switch in ((0, False), (1, True), (1, False), (3, True), (2, False)):
+        states[:, PROGRESS] = k / 3
+        parts = scorer.score_embeddings(np.array([[-5.0, 0.0], [25.0, 0.0]]), states)
+        assert parts.completed.tolist() == [k, k] and parts.bonus.tolist() == [2.0 * k] * 2
+        assert parts.switched.tolist() == [expected_switch] * 2
+    one = RewardScorer(line_model(), scheme=1, variant="inest", config=RewardConfig(stage_source="privileged"))
+    states = np.zeros((1, 21), np.float32)
+    states[0, PROGRESS] = 2 / 3
+    assert one.score_embeddings(np.array([[20.0, 0.0]]), states).completed[0] == 0
+    states[0, PROGRESS] = 1.0
+    assert one.score_embeddings(np.array([[20.0, 0.0]]), states).completed[0] == 1
+    with pytest.raises(ValueError, match="state vectors"):
+        scorer.score_embeddings(np.zeros((2, 2)))
+
+
+def test_privileged_stage_refuses_the_six_subtask_scheme(tiny_tcc_run):
+    _, run_dir = tiny_tcc_run
+    with pytest.raises(ValueError, match="diagnostic"):
+        RewardScorer(load_model(run_dir / "model"), 6, config=RewardConfig(stage_source="privileged"))
+
+
+def test_the_intrinsic_cap_bounds_the_weighted_novelty():
+    intrinsic = IntrinsicConfig(mode="embedding", k=1, weight=0.2, boosted_weight=0.4, boost_steps=2)
+    free = RewardScorer(line_model(), 3, intrinsic=intrinsic, config=RewardConfig(tracker="threshold"))
+    capped = RewardScorer(
+        line_model(), 3, intrinsic=intrinsic, config=RewardConfig(tracker="threshold", intrinsic_cap=0.5)
+    )
+    xs = [0.0, 30.0, -40.0, 0.1, 0.1, 0.1, 100.0]
+    uncapped = np.array([s.intrinsic[0] for s in run(free, xs)])
+    bounded = np.array([s.intrinsic[0] for s in run(capped, xs)])
+    assert uncapped.max() > 5.0 and bounded.max() == pytest.approx(0.5)
+    np.testing.assert_allclose(bounded, np.minimum(uncapped, 0.5))
+
+
+def test_a_model_calibrated_before_reward_configs_loads_and_names_the_fix(tiny_tcc_run, tmp_path):
+    _, run_dir = tiny_tcc_run
+    old = tmp_path / "old"
+    shutil.copytree(run_dir / "model", old)
+    metadata = json.loads((old / MODEL_FILE).read_text())
+    for goals in metadata["subtasks"].values():
+        del goals["start_distances"], goals["start_embeddings"], goals["stage_classifier"]
+    (old / MODEL_FILE).write_text(json.dumps(metadata))
+    model = load_model(old, scheme=3)
+    assert model.goals(3).start_distances is None and model.goals(3).stage_classifier is None
+    RewardScorer(model, 3, config=RewardConfig("thesis", "threshold"))  # today's reward needs none of them
+    for config, missing in (
+        (RewardConfig(), "start embeddings"),
+        (RewardConfig("progress", "threshold"), "start distances"),
+        (RewardConfig("segment", "threshold"), "start embeddings"),
+        (RewardConfig("thesis", "classifier"), "stage classifier"),
+        (RewardConfig("thesis", "reopening"), "start embeddings"),
+    ):
+        with pytest.raises(ModelError, match=rf"no per-subtask {missing}|no {missing}") as error:
+            RewardScorer(model, 3, config=config)
+        assert "--resume" in str(error.value)
+    # one subtask: the start distance is the XIRL scale's mean distance, so it is filled in
+    assert model.goals(1).start_distances == pytest.approx([1.0 / model.goals(1).distance_scale])
+    RewardScorer(model, 1, "inest", config=RewardConfig("progress", "threshold"))
+
+
+def test_calibration_stores_start_distances_and_a_stage_classifier(tiny_tcc_run):
+    config, run_dir = tiny_tcc_run
+    from inest_reward_node.calibrate import subtask_starts
+    from inest_reward_node.data import load_demos
+
+    model = load_model(run_dir / "model")
+    demos = load_demos(config.dataset, "train", "ego", 48, progress_bar=False)
+    embeddings = [model.embed(demo.frames) for demo in demos]
+    for scheme in (1, 3, 6):
+        goals = model.goals(scheme)
+        expected = [
+            np.mean(
+                [
+                    goal_distances(emb[subtask_starts(demo.ends[scheme])[k]][None], goals)[0, k]
+                    for emb, demo in zip(embeddings, demos, strict=True)
+                ]
+            )
+            for k in range(scheme)
+        ]
+        assert goals.start_distances == pytest.approx(expected, rel=1e-4)
+        starts = [
+            np.mean([e[subtask_starts(d.ends[scheme])[k]] for e, d in zip(embeddings, demos, strict=True)], axis=0)
+            for k in range(scheme)
+        ]
+        np.testing.assert_allclose(goals.start_embeddings, starts, rtol=1e-4, atol=1e-5)
+        classifier = goals.stage_classifier
+        assert classifier.num_stages == scheme + 1
+        labels = np.concatenate([demo_stages(d.progress, d.labels[scheme], scheme) for d in demos])
+        predicted = classifier.predict(np.concatenate(embeddings))
+        assert np.mean(predicted == labels) > 0.5  # a 40-iteration encoder: only better than chance
+
+
+def test_fitting_the_stage_classifier_separates_stages_and_round_trips():
+    rng = np.random.default_rng(0)
+    centres = np.array([[0.0, 0.0], [3.0, 0.0], [6.0, 0.0]])
+    demo_x = [centres[k] + 0.3 * rng.standard_normal((50, 2)) for k in range(3)]
+    demo_y = [np.full(50, k) for k in range(3)]
+    negatives = [np.array([[3.0, 3.0]]) + 0.3 * rng.standard_normal((40, 2))]  # looks like nothing seen: stage 0
+    classifier = fit_stage_classifier(demo_x, demo_y, 3, negatives, [np.zeros(40, int)])
+    assert np.mean(classifier.predict(np.concatenate(demo_x)) == np.concatenate(demo_y)) > 0.95
+    assert np.mean(classifier.predict(negatives[0]) == 0) > 0.9
+    again = StageClassifier.from_dict(json.loads(json.dumps(classifier.to_dict())))
+    np.testing.assert_allclose(again.probabilities(demo_x[1]), classifier.probabilities(demo_x[1]), rtol=1e-6)
+    at_least = classifier.at_least(demo_x[2])
+    assert np.allclose(at_least[:, 0], 1.0) and np.all(np.diff(at_least, axis=1) <= 1e-6)
+
+
+def test_true_stages_are_not_latched():
+    progress = np.array([0, 1, 1, 0, 1, 2, 3, 2])
+    assert true_stages(progress, None, 3).tolist() == progress.tolist()
+    assert true_stages(progress, None, 1).tolist() == [0, 0, 0, 0, 0, 0, 1, 0]
+    held = np.array([0, 0, 1, 0, 0, 0, 0, 0], bool)
+    assert true_stages(progress, held, 6).tolist() == [0, 2, 3, 0, 2, 4, 6, 4]
+    labels = np.array([0, 0, 1, 1, 2, 3, 4, 5, 5], np.int8)  # a demonstration's 6-subtask labels
+    demo_progress = np.array([0, 0, 0, 1, 1, 2, 2, 2, 3])
+    assert demo_stages(demo_progress, labels, 6).tolist() == [0, 1, 1, 2, 3, 4, 5, 5, 6]
+
+
+class FakeNode:
+    """Just enough of rclpy's Node for declare_dataclass: parameters given on the command line."""
+
+    def __init__(self, overrides: dict) -> None:
+        self.overrides, self.declared = overrides, {}
+
+    def declare_parameter(self, name, default):
+        self.declared[name] = default
+        return type("Parameter", (), {"value": self.overrides.get(name, default)})()
+
+
+def test_the_reward_node_declares_the_reward_config_as_parameters():
+    pytest.importorskip("rclpy")
+    from inest_reward_node.node import declare_reward_config
+
+    node = FakeNode({})
+    assert declare_reward_config(node) == RewardConfig()
+    assert set(node.declared) == {f"reward.{name}" for name in RewardConfig().to_dict()}
+    assert node.declared["reward.intrinsic_cap"] == float("inf")  # a double, not a None string
+    chosen = declare_reward_config(
+        FakeNode({"reward.shaping": "thesis", "reward.tracker": "reopening", "reward.intrinsic_cap": 0.5})
+    )
+    assert chosen == RewardConfig("thesis", "reopening", intrinsic_cap=0.5)
+    with pytest.raises(ValueError, match="only sees images"):
+        declare_reward_config(FakeNode({"reward.stage_source": "privileged"}))
+    with pytest.raises(ValueError, match="unknown reward tracker"):
+        declare_reward_config(FakeNode({"reward.tracker": "latched"}))
+
+
+def test_serving_refuses_the_privileged_stage():
+    from inest_reward_node.serving import StreamScorer
+
+    with pytest.raises(ValueError, match="state vectors"):
+        StreamScorer(RewardScorer(line_model(), 3, config=RewardConfig(stage_source="privileged")))

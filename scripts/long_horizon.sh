@@ -5,6 +5,7 @@
 # config, plots; no checkpoints) are copied to results/long-horizon/ with summary.json and
 # learning_curves.png (inest-summarise).
 #   bash scripts/long_horizon.sh [METHOD ...]     # default: all methods
+#   bash scripts/long_horizon.sh --collect        # only copy and summarise what runs/long-horizon holds
 # Environment: INEST_MODEL (reward model folder, default results/long-horizon/reward-model),
 # INEST_SEEDS (default "0 1 2"), INEST_PARALLEL (default 2).
 set -euo pipefail
@@ -22,6 +23,8 @@ declare -A METHODS=(
   [inest3-none]="--reward inest --model $MODEL --intrinsic none --total-steps 300000"
   [inest3-embedding-state-obs]="--reward inest --model $MODEL --intrinsic embedding --observation state --total-steps 300000"
 )
+collect_only=false
+[ "${1:-}" = "--collect" ] && { collect_only=true; shift; }
 selected=("$@")
 [ ${#selected[@]} -gt 0 ] || selected=(oracle inest3-embedding inest3-none oracle-state-obs inest3-embedding-state-obs)
 
@@ -44,6 +47,7 @@ run_cell() {
 }
 
 running=0
+$collect_only && cells=()
 for cell in "${cells[@]}"; do
   # shellcheck disable=SC2086
   run_cell $cell &

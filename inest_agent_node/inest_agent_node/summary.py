@@ -86,12 +86,17 @@ def plot_curves(rows: list[dict[str, Any]], path: Path) -> None:
 
     figure, axis = plt.subplots(figsize=(7, 4))
     for method in sorted({row["method"] for row in rows}):
-        curves = [np.asarray(row["curve"], dtype=float) for row in rows if row["method"] == method]
-        length = min(len(curve) for curve in curves)
-        steps = curves[0][:length, 0]
-        scores = np.stack([curve[:length, 1] for curve in curves])
-        axis.plot(steps, scores.mean(axis=0), label=f"{method} ({len(curves)} seeds)")
-        axis.fill_between(steps, scores.min(axis=0), scores.max(axis=0), alpha=0.2)
+        finals = [np.asarray(row["curve"], dtype=float) for row in rows if row["method"] == method and row["final"]]
+        if finals:
+            length = min(len(curve) for curve in finals)
+            steps = finals[0][:length, 0]
+            scores = np.stack([curve[:length, 1] for curve in finals])
+            (line,) = axis.plot(steps, scores.mean(axis=0), label=f"{method} ({len(finals)} seeds)")
+            axis.fill_between(steps, scores.min(axis=0), scores.max(axis=0), alpha=0.2, color=line.get_color())
+        for row in rows:
+            if row["method"] == method and not row["final"]:
+                curve = np.asarray(row["curve"], dtype=float)
+                axis.plot(curve[:, 0], curve[:, 1], ":", label=f"{method} {row['run']} (still training)")
     axis.set(xlabel="environment steps", ylabel="evaluation score (50 episodes)", ylim=(0, 1.02))
     axis.set_title("mean over seeds; band: lowest to highest seed")
     axis.legend(fontsize=8)

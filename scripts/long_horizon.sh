@@ -62,6 +62,10 @@ for run in "$RUNS"/*/seed*/; do
   for file in config.json results.json learning_curve.png coverage.png; do
     [ -f "$run/$file" ] && cp "$run/$file" "$target/"
   done
-  [ -f "$run/checkpoint/history.json" ] && [ ! -f "$run/results.json" ] && cp "$run/checkpoint/history.json" "$target/"
+  if [ ! -f "$run/results.json" ]; then  # still training: its learning curve and reward diagnostics so far
+    for file in history.json diagnostics.json; do
+      [ -f "$run/checkpoint/$file" ] && cp "$run/checkpoint/$file" "$target/"
+    done
+  fi
 done
 "$BIN/inest-summarise" results/long-horizon

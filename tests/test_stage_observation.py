@@ -88,6 +88,7 @@ def test_a_stage_claimed_for_a_block_not_in_the_goal_is_a_false_completion():
     diagnostics.update([info(0, 0), info(2, 1)], np.array([True, True]), np.array([3.0, 2.0]))  # env 1: blue missed
     summary = diagnostics.summary()
     assert summary["false_completion_rate"] == 0.5 and summary["missed_rate"] == 0.5
+    assert summary["unearned_completion_rate"] == 0.5  # env 0 never had red in the goal
     assert summary["shaping_per_step"] == -0.5 and summary["bonus_per_step"] == pytest.approx(1.5)
     assert summary["max_progress_mean"] == 1.0 and summary["episodes"] == 2 and summary["reward_per_step"] == 2.0
     assert diagnostics.summary() == {}  # cleared

@@ -26,6 +26,7 @@ class EpisodeTrace:
     max_progress: int = 0
     max_claimed: int = 0
     false_completion: bool = False  # the stage claimed a block that was not placed in order
+    unearned_completion: bool = False  # ... and that had not been placed at any step before
 
 
 @dataclass
@@ -34,8 +35,10 @@ class RewardDiagnostics:
 
     Per step: the mean reward and the mean of each of its parts. Per finished episode: the true progress at its end
     and its maximum, a false completion (at some step the learned stage claimed more blocks
-    than were placed in order), a miss (the true progress reached more blocks than the stage
-    ever claimed)."""
+    than were placed in order then; this includes a tracker still catching up with a block
+    pushed back out), an unearned completion (the stage claimed more blocks than had been
+    placed at any step so far: paid for something that never happened), a miss (the true
+    progress reached more blocks than the stage ever claimed)."""
 
     num_envs: int
     num_subtasks: int
@@ -62,10 +65,12 @@ class RewardDiagnostics:
                 claimed = int(claimed_blocks(info[LEARNED_STAGE], self.num_subtasks))
                 trace.max_claimed = max(trace.max_claimed, claimed)
                 trace.false_completion |= claimed > progress
+                trace.unearned_completion |= claimed > trace.max_progress
             if dones[index]:
                 episode: dict[str, Any] = {"final_progress": progress, "max_progress": trace.max_progress}
                 if learned:
                     episode["false_completion"] = trace.false_completion
+                    episode["unearned_completion"] = trace.unearned_completion
                     episode["missed"] = trace.max_progress > trace.max_claimed
                 self.episodes.append(episode)
                 self.traces[index] = EpisodeTrace()
@@ -78,7 +83,7 @@ class RewardDiagnostics:
         """Means since the last summary (then cleared): per-step parts, per-episode rates."""
         result = {f"{name}_per_step": self.sums[name] / self.counts[name] for name in self.sums}
         if self.episodes:
-            for key in ("final_progress", "max_progress", "false_completion", "missed"):
+            for key in ("final_progress", "max_progress", "false_completion", "unearned_completion", "missed"):
                 values = [episode[key] for episode in self.episodes if key in episode]
                 if values:
                     name = f"{key}_rate" if isinstance(values[0], bool) else f"{key}_mean"

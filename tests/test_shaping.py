@@ -31,11 +31,11 @@ def test_tracker_count_restarts_on_a_dip_and_on_reset():
     tracker = SubtaskTracker([-0.1], hold_steps=3)
     for reward in (-0.05, -0.05, -0.5, -0.05, -0.05):
         tracker.update(reward)
-    assert tracker.completed == 0 and tracker.streak == 2
+    assert tracker.completed == 0 and tracker.up_streak == 2
     tracker.update(-0.05)
     assert tracker.done
     tracker.reset()
-    assert (tracker.completed, tracker.streak, tracker.done) == (0, 0, False)
+    assert (tracker.completed, tracker.up_streak, tracker.done) == (0, 0, False)
 
 
 def test_shaping_config_rejects_bad_values():

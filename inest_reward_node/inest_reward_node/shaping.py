@@ -45,24 +45,27 @@ def distance_reward(distance: np.ndarray | float, shaping: ShapingConfig) -> np.
     return -shaping.quadratic * d2 - shaping.linear * np.sqrt(d2 + shaping.smoothing)
 
 
-class SubtaskTracker:
-    """Advances to the next subtask once r(d) has stayed above the current subtask's threshold for
-    `hold_steps` consecutive frames; a frame below it restarts the count."""
+class StageTracker:
+    """The stage a policy should see, moved one subtask at a time; `completed` may go down.
+    Subclasses decide from each frame's evidence whether the stage moves (`step`: +1, 0, -1)."""
 
-    def __init__(self, thresholds: Sequence[float], hold_steps: int) -> None:
-        if not thresholds:
-            raise ValueError("a tracker needs at least one subtask threshold")
-        self.thresholds = [float(value) for value in thresholds]
+    def __init__(self, num_subtasks: int, hold_steps: int) -> None:
+        if num_subtasks < 1:
+            raise ValueError("a tracker needs at least one subtask")
+        if hold_steps < 1:
+            raise ValueError(f"hold_steps must be at least 1, got {hold_steps}")
+        self._num_subtasks = num_subtasks
         self.hold_steps = hold_steps
         self.reset()
 
     def reset(self) -> None:
         self.completed = 0
-        self.streak = 0
+        self.up_streak = 0
+        self.down_streak = 0
 
     @property
     def num_subtasks(self) -> int:
-        return len(self.thresholds)
+        return self._num_subtasks
 
     @property
     def done(self) -> bool:
@@ -70,16 +73,34 @@ class SubtaskTracker:
 
     @property
     def current(self) -> int:
-        """Index of the subtask being worked on (the last one once all are done)."""
         return min(self.completed, self.num_subtasks - 1)
+
+    def move(self, up: bool, down: bool) -> int:
+        """One frame's verdicts: `up` the next stage looks reached, `down` the current one looks undone."""
+        self.up_streak = self.up_streak + 1 if up and not self.done else 0
+        self.down_streak = self.down_streak + 1 if down and self.completed > 0 else 0
+        if self.up_streak >= self.hold_steps:
+            self.completed += 1
+            self.up_streak = self.down_streak = 0
+            return 1
+        if self.down_streak >= self.hold_steps:
+            self.completed -= 1
+            self.up_streak = self.down_streak = 0
+            return -1
+        return 0
+
+
+class SubtaskTracker(StageTracker):
+    """The thesis's counter: advances to the next subtask once r(d) has stayed above the current
+    subtask's threshold for `hold_steps` consecutive frames (a frame below it restarts the
+    count), and never goes back."""
+
+    def __init__(self, thresholds: Sequence[float], hold_steps: int) -> None:
+        if not thresholds:
+            raise ValueError("a tracker needs at least one subtask threshold")
+        self.thresholds = [float(value) for value in thresholds]
+        super().__init__(len(self.thresholds), hold_steps)
 
     def update(self, reward: float) -> bool:
         """Feed the current subtask's r(d) for one frame; True when this frame completed it."""
-        if self.done:
-            return False
-        self.streak = self.streak + 1 if reward >= self.thresholds[self.completed] else 0
-        if self.streak < self.hold_steps:
-            return False
-        self.completed += 1
-        self.streak = 0
-        return True
+        return self.move(not self.done and reward >= self.thresholds[self.completed], down=False) == 1

@@ -34,6 +34,8 @@ import numpy as np
 import torch
 from inest_sim_node.subtasks import current_subtasks
 
+from .shaping import StageTracker
+
 SHAPINGS = ("thesis", "raw", "progress", "segment")
 TRACKERS = ("threshold", "reopening", "classifier", "confirmed")
 STAGE_SOURCES = ("tracker", "privileged")
@@ -286,51 +288,6 @@ def fit_stage_classifier(
         loss.backward()
         optimizer.step()
     return StageClassifier(mean, scale, *(p.detach().numpy() for p in parameters))
-
-
-class StageTracker:
-    """The stage a policy should see, moved one subtask at a time; `completed` may go down.
-    Subclasses decide from each frame's evidence whether the stage moves (`step`: +1, 0, -1)."""
-
-    def __init__(self, num_subtasks: int, hold_steps: int) -> None:
-        if num_subtasks < 1:
-            raise ValueError("a tracker needs at least one subtask")
-        if hold_steps < 1:
-            raise ValueError(f"hold_steps must be at least 1, got {hold_steps}")
-        self._num_subtasks = num_subtasks
-        self.hold_steps = hold_steps
-        self.reset()
-
-    def reset(self) -> None:
-        self.completed = 0
-        self.up_streak = 0
-        self.down_streak = 0
-
-    @property
-    def num_subtasks(self) -> int:
-        return self._num_subtasks
-
-    @property
-    def done(self) -> bool:
-        return self.completed >= self.num_subtasks
-
-    @property
-    def current(self) -> int:
-        return min(self.completed, self.num_subtasks - 1)
-
-    def move(self, up: bool, down: bool) -> int:
-        """One frame's verdicts: `up` the next stage looks reached, `down` the current one looks undone."""
-        self.up_streak = self.up_streak + 1 if up and not self.done else 0
-        self.down_streak = self.down_streak + 1 if down and self.completed > 0 else 0
-        if self.up_streak >= self.hold_steps:
-            self.completed += 1
-            self.up_streak = self.down_streak = 0
-            return 1
-        if self.down_streak >= self.hold_steps:
-            self.completed -= 1
-            self.up_streak = self.down_streak = 0
-            return -1
-        return 0
 
 
 class ClassifierTracker(StageTracker):

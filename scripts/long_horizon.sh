@@ -62,6 +62,7 @@ for run in "$RUNS"/*/seed*/; do
   for file in config.json results.json learning_curve.png coverage.png; do
     [ -f "$run/$file" ] && cp "$run/$file" "$target/"
   done
+  rm -f "$target/history.json" "$target/diagnostics.json"
   if [ ! -f "$run/results.json" ]; then  # still training: its learning curve and reward diagnostics so far
     for file in history.json diagnostics.json; do
       [ -f "$run/checkpoint/$file" ] && cp "$run/checkpoint/$file" "$target/"

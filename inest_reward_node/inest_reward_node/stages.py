@@ -32,15 +32,17 @@ from typing import Any
 
 import numpy as np
 import torch
+from inest_sim_node.scoring import NUM_BLOCKS
 from inest_sim_node.subtasks import current_subtasks
+
+from inest_sim_node import STATE_FIELDS
 
 from .shaping import StageTracker
 
 SHAPINGS = ("thesis", "raw", "progress", "segment")
 TRACKERS = ("threshold", "reopening", "classifier", "confirmed")
 STAGE_SOURCES = ("tracker", "privileged")
-PROGRESS_FIELD = 20  # inest_sim_node.STATE_FIELDS.index("ordered_progress"): k / 3
-NUM_BLOCKS = 3
+PROGRESS_FIELD = STATE_FIELDS.index("ordered_progress")  # k / 3 in the state vector
 REOPEN_BELOW = 0.5  # segment closeness of the reopened subtask: the frame looks like its first half
 
 

@@ -25,6 +25,7 @@ setup(
             "inest-agent-node = inest_agent_node.node:main",
             "inest-train = inest_agent_node.train:main",
             "inest-summarise = inest_agent_node.summary:main",
+            "inest-record-clips = inest_agent_node.record_clips:main",
         ],
     },
 )

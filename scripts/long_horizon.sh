@@ -22,6 +22,8 @@ declare -A METHODS=(
   [inest3-embedding]="--reward inest --model $MODEL --intrinsic embedding --total-steps 300000"
   [inest3-none]="--reward inest --model $MODEL --intrinsic none --total-steps 300000"
   [inest3-embedding-state-obs]="--reward inest --model $MODEL --intrinsic embedding --observation state --total-steps 300000"
+  # DIAGNOSTIC, never a method: the learned shaping with the stage and bonus of the true progress
+  [inest3-privileged-stage]="--reward inest --model $MODEL --intrinsic embedding --stage-source privileged --total-steps 300000"
 )
 collect_only=false
 [ "${1:-}" = "--collect" ] && { collect_only=true; shift; }

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from inest_reward_node.clips import Clip
 from inest_reward_node.data import load_demos
 from inest_reward_node.model import load_model
-from inest_reward_node.pretrain import RandomPlay
 from inest_reward_node.quality import (
     ScorerOptionError,
     completion_lags,
@@ -60,7 +60,7 @@ def test_switch_dips_and_completion_lags():
 
 def test_false_completions_follow_the_true_ordered_progress():
     progress = np.array([0, 0, 0, 0, 1, 1, 1, 1, 1, 2])
-    play = RandomPlay(np.zeros((10, 1, 1, 3), np.uint8), progress, np.zeros(10, bool))
+    play = Clip(np.zeros((10, 1, 1, 3), np.uint8), progress, np.zeros(10, bool))
     # events[k]: the frames on which the tracker marked subtask k done
     # red marked done on frame 5 (really in the goal from frame 4), blue on frame 6 (not yet): blue is false
     assert false_completions([[5], [6], []], play, 3).tolist() == [False, True, False]
@@ -69,7 +69,7 @@ def test_false_completions_follow_the_true_ordered_progress():
     assert false_completions([[1, 5], [], []], play, 3).tolist() == [True, False, False]  # once false is enough
     assert false_completions([[9]], play, 1).tolist() == [True]  # 1 subtask: done only at progress 3
     held = np.array([0, 0, 1, 0, 0, 0, 0, 0, 0, 0], bool)
-    grasp = RandomPlay(play.frames, progress, held)
+    grasp = Clip(play.frames, progress, held)
     # 6 subtasks: grasp red done from frame 2 on, push red from frame 4 on, grasp blue never
     assert false_completions([[2], [4], [6], [], [], []], grasp, 6).tolist() == [False, False, True] + [False] * 3
     assert false_completions([[1], [], [], [], [], []], grasp, 6).tolist()[0]

@@ -11,6 +11,7 @@ LEARNED_STAGE and the reward's parts (SHAPING, BONUS, INTRINSIC).
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -190,11 +191,18 @@ class StageObservationVecEnv(VecEnvWrapper):
 
 
 def build_env(
-    config: TrainConfig, num_envs: int | None = None, seed: int | None = None, evaluation: bool = False
+    config: TrainConfig,
+    num_envs: int | None = None,
+    seed: int | None = None,
+    evaluation: bool = False,
+    wrap_simulators: Callable[[VecEnv], VecEnv] | None = None,
 ) -> VecEnv:
     """The vector env `config` trains on: in-process simulators, the learned reward, the stage
     observation. `evaluation`: the same observation path, without the intrinsic bonus (its
-    memories belong to training) and with the reward node's model for the topic reward."""
+    memories belong to training) and with the reward node's model for the topic reward.
+    `wrap_simulators` wraps the simulators' vector env, whose infos still hold the camera frames
+    of a learned reward (FRAME_KEY), before anything else sees it."""
+    wrap_simulators = wrap_simulators or (lambda venv: venv)
     num_envs = num_envs or config.num_envs
     seed = config.seed if seed is None else seed
     env_config = EnvConfig(view=config.view, reward=config.oracle)
@@ -209,13 +217,13 @@ def build_env(
             )
         reward = "inest" if config.subtasks > 1 else "xirl"
     if reward == "env" or (evaluation and config.observation == "state"):
-        venv = make_vec_env(num_envs, env_config, seed)
+        venv = wrap_simulators(make_vec_env(num_envs, env_config, seed))
         return with_observation(venv, config, TRUE_PROGRESS)
     scheme = config.subtasks if reward == "inest" else 1
     model = load_model(config.model, view=config.view, scheme=scheme)
     intrinsic = IntrinsicConfig(mode="none") if evaluation else config.intrinsic
     scorer = RewardScorer(model, scheme, reward, intrinsic, num_envs, config=config.learned_reward)
-    venv = make_vec_env(num_envs, env_config, seed, (config.view, model.image_size))
+    venv = wrap_simulators(make_vec_env(num_envs, env_config, seed, (config.view, model.image_size)))
     batch_steps = 1 if evaluation else config.reward_batch_steps
     return with_observation(LearnedRewardVecEnv(venv, scorer, batch_steps=batch_steps), config, LEARNED_STAGE)
 

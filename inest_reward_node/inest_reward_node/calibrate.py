@@ -30,7 +30,9 @@ class CalibrationConfig:
     The stage classifier (stages.py) is fitted on the demonstrations, the same random-policy
     episodes and `wrong_order_episodes` episodes of the scripted expert placing the blocks in a
     wrong order (inest_sim_node.expert.ScriptedExpert(order=...)), every frame labelled with the
-    simulator's true ordered progress. The thresholds use random play only, as before."""
+    simulator's true ordered progress, and on the labelled `clips` files (clips.py; e.g. a trained
+    policy's own rollouts from inest-record-clips, whose frames the classifier must not mistake
+    for progress). The thresholds use random play only."""
 
     percentile: float = 2.0
     random_episodes: int = 50  # 0: demonstrations only
@@ -38,6 +40,7 @@ class CalibrationConfig:
     demo_pass_rate: float = 0.98
     late_frames: int = 10
     wrong_order_episodes: int = 20  # for the stage classifier only; 0: none
+    clips: tuple[str, ...] = ()  # clip files (clips.save_clips) for the stage classifier only
     classifier: StageClassifierConfig = field(default_factory=StageClassifierConfig)
 
     def __post_init__(self) -> None:

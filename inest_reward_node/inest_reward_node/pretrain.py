@@ -23,13 +23,8 @@ from typing import Any
 
 import numpy as np
 import torch
-from inest_sim_node.collect import holds_current_block
 from inest_sim_node.dataset import METADATA_FILE, DatasetError, read_metadata, sha256_of, write_atomic
-from inest_sim_node.expert import TASK_ORDER, ScriptedExpert
-from inest_sim_node.subtasks import completed_subtasks
 from tqdm import tqdm
-
-from inest_sim_node import EnvConfig, SweepToTopEnv
 
 from .calibrate import (
     CalibrationConfig,
@@ -39,6 +34,7 @@ from .calibrate import (
     start_embeddings,
     xirl_distance_scale,
 )
+from .clips import load_clips, random_play, wrong_order_play
 from .data import AugmentConfig, Demo, augment_videos, load_demos, sample_goal_pairs, sample_tcc_batch
 from .encoders import ENCODER_KINDS, EncoderConfig, frames_to_tensor
 from .holdr import HoldRConfig
@@ -138,80 +134,21 @@ def dataset_hash(root: str | Path) -> str:
     return sha256_of(Path(root) / METADATA_FILE)
 
 
-RANDOM_PLAY_SEED = 40_000_000  # layouts no demonstration, training or evaluation episode uses
-WRONG_ORDER_SEED = 40_500_000
-WRONG_ORDERS = tuple(
-    order
-    for order in ((1, 0, 2), (2, 0, 1), (0, 2, 1), (1, 2, 0), (2, 1, 0))  # every order but the task's
-    if order != TASK_ORDER
-)
-
-
-@dataclass
-class RandomPlay:
-    """One episode of uniformly random actions: the behaviour a policy shows before it has learnt
-    anything, which no demonstration contains (or of any other policy, e.g. wrong-order play)."""
-
-    frames: np.ndarray  # (steps, S, S, 3), after each step
-    progress: np.ndarray  # (steps,) ordered blocks in the goal
-    held: np.ndarray  # (steps,) the current block sits in the gripper
-
-    def not_yet_completed(self, scheme: int, subtask: int) -> np.ndarray:
-        """Frames on which `subtask` has not really been completed: where its completion is false."""
-        return completed_subtasks(self.progress, self.held, scheme) <= subtask
-
-
-def play(env: SweepToTopEnv, act, seed: int, view: str, image_size: int) -> RandomPlay:
-    """One episode on layout `seed` under `act(env) -> action`, until the environment truncates it."""
-    env.reset(seed=seed)
-    frames, progress, held, done = [], [], [], False
-    while not done:
-        _, _, terminated, truncated, _ = env.step(act(env))
-        frames.append(env.render_camera(view, image_size))
-        progress.append(env.progress)
-        held.append(holds_current_block(env))
-        done = terminated or truncated
-    return RandomPlay(np.stack(frames), np.array(progress), np.array(held))
-
-
-def random_play(view: str, image_size: int, episodes: int, seed: int = RANDOM_PLAY_SEED) -> list[RandomPlay]:
-    env = SweepToTopEnv(config=EnvConfig(view=view, image_size=image_size))
-    rng = np.random.default_rng(seed)
-    try:
-        return [
-            play(env, lambda _: rng.uniform(-1.0, 1.0, 3), seed + episode, view, image_size)
-            for episode in range(episodes)
-        ]
-    finally:
-        env.close()
-
-
-def wrong_order_play(view: str, image_size: int, episodes: int, seed: int = WRONG_ORDER_SEED) -> list[RandomPlay]:
-    """The scripted expert placing the blocks in a wrong order (cycling through WRONG_ORDERS): frames
-    that look like progress but are not (the environment counts at most the prefix in order)."""
-    env = SweepToTopEnv(config=EnvConfig(view=view, image_size=image_size))
-    plays = []
-    try:
-        for episode in range(episodes):
-            expert = ScriptedExpert(seed=seed + episode, order=WRONG_ORDERS[episode % len(WRONG_ORDERS)])
-            plays.append(play(env, expert.act, seed + episode, view, image_size))
-    finally:
-        env.close()
-    return plays
-
-
 def calibrate(
     model: RewardModel, demos: list[Demo], config: PretrainConfig, progress_bar: bool = True
 ) -> dict[str, SubtaskGoals]:
     """Goal embeddings, XIRL scale, thresholds, start distances and embeddings and the stage classifier
-    per subtask scheme, from the training demonstrations (and random and wrong-order play, see CalibrationConfig)."""
+    per subtask scheme, from the training demonstrations (and random, wrong-order and clip-file
+    play, see CalibrationConfig)."""
     embeddings = [
         model.embed(demo.frames) for demo in tqdm(demos, desc="embedding demos", leave=False, disable=not progress_bar)
     ]
-    plays = random_play(config.view, config.encoder.image_size, config.calibration.random_episodes)
+    size = config.encoder.image_size
+    plays = random_play(config.view, size, config.calibration.random_episodes)
     negatives = [model.embed(play.frames) for play in plays]
-    wrong = wrong_order_play(config.view, config.encoder.image_size, config.calibration.wrong_order_episodes)
-    wrong_embeddings = [model.embed(play.frames) for play in wrong]
+    others = wrong_order_play(config.view, size, config.calibration.wrong_order_episodes)  # classifier only
+    others += [clip for path in config.calibration.clips for clip in load_clips(path, config.view, size)]
+    other_embeddings = [model.embed(clip.frames) for clip in others]
     schemes = TCC_SCHEMES if config.method == "tcc" else (1,)
     result = {}
     for scheme in schemes:
@@ -242,8 +179,8 @@ def calibrate(
             embeddings,
             [demo_stages(demo.progress, demo.labels[scheme], scheme) for demo in demos],
             scheme + 1,
-            negatives + wrong_embeddings,
-            [true_stages(p.progress, p.held, scheme) for p in plays + wrong],
+            negatives + other_embeddings,
+            [true_stages(clip.progress, clip.held, scheme) for clip in plays + others],
             config.calibration.classifier,
         )
         result[str(scheme)] = partial
@@ -382,8 +319,10 @@ class Pretrainer:
 def pretrain(
     config: PretrainConfig, run_dir: str | Path, resume: bool = False, progress_bar: bool = True
 ) -> RewardModel:
-    trainer = Pretrainer(config, run_dir, resume)
     size = config.encoder.image_size
+    for path in config.calibration.clips:  # refuse a clip file that does not fit before training, not after
+        load_clips(path, config.view, size)
+    trainer = Pretrainer(config, run_dir, resume)
     train = load_demos(config.dataset, "train", config.view, size, config.train_limit, progress_bar)
     valid = load_demos(config.dataset, "valid", config.view, size, config.valid_limit, progress_bar)
     if len(train) < 2:
@@ -436,6 +375,13 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         default=defaults.calibration.wrong_order_episodes,
         help="wrong-order expert episodes for the stage classifier (default %(default)s)",
     )
+    parser.add_argument(
+        "--clips",
+        nargs="+",
+        default=list(defaults.calibration.clips),
+        metavar="FILE",
+        help="labelled clip files (inest-record-clips) the stage classifier is also fitted on",
+    )
     parser.add_argument("--no-augment", action="store_true")
     args = parser.parse_args(argv)
     config = dataclasses.replace(
@@ -456,6 +402,7 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
             false_fire_rate=args.false_fire_rate,
             demo_pass_rate=args.demo_pass_rate,
             wrong_order_episodes=args.wrong_order_episodes,
+            clips=tuple(args.clips),
         ),
         **{name: getattr(args, name) for name in INTEGER_OPTIONS},
     )
@@ -466,7 +413,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         config, args = parse_args(argv)
         model = pretrain(config, args.out, resume=args.resume)
-    except (DatasetError, FileExistsError, ValueError) as error:
+    except (DatasetError, FileExistsError, ValueError) as error:  # ClipError is a ValueError
         print(f"inest-pretrain: {error}", file=sys.stderr)
         return 2
     schemes = ", ".join(f"{scheme} subtasks" for scheme in sorted(model.subtasks))

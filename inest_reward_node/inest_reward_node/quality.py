@@ -34,7 +34,7 @@ Per subtask k (report key `per_subtask`, one entry per subtask, in order):
 - false_completion_rate: on negatives, share of episodes in which a fresh tracker marks k done
   (at least once) on a frame where k is not really complete: the environment's ordered
   progress < k + 1 for 3 subtasks, per the scheme's labels for 6, progress < 3 for 1.
-  Negatives: `random` (uniform random actions, pretrain.random_play) and `wrong_order` (the
+  Negatives: `random` (uniform random actions, clips.random_play) and `wrong_order` (the
   scripted expert placing blue, then red, then yellow), --negative-episodes of each, 100 steps,
   on layout seeds no other episode uses (random from 41,000,000, wrong order from 41,500,000;
   calibration's random and wrong-order play use 40,000,000 and 40,500,000 on); the camera frame
@@ -65,23 +65,20 @@ from typing import Any
 
 import numpy as np
 from inest_sim_node.dataset import DatasetError
-from inest_sim_node.expert import WRONG_ORDER, ScriptedExpert
+from inest_sim_node.expert import WRONG_ORDER
 from inest_sim_node.world import BLOCK_COLOURS
 from scipy.stats import spearmanr
 from tqdm import tqdm
 
-from inest_sim_node import EnvConfig, SweepToTopEnv
-
 from .calibrate import subtask_starts
+from .clips import Clip, ClipError, load_clips, random_play, wrong_order_play
 from .data import Demo, load_demos
 from .intrinsic import IntrinsicConfig
 from .model import ModelError, RewardModel, load_model
-from .pretrain import RandomPlay, play, random_play
 from .rewards import Replay, RewardScorer, default_variant, replay
 from .stages import RewardConfig
 
 REPORT_FILE = "report.json"
-NEGATIVE_KINDS = ("random", "wrong_order")
 NEGATIVE_SEEDS = {"random": 41_000_000, "wrong_order": 41_500_000}  # layouts no other episode uses
 DEFAULT_NEGATIVE_EPISODES = 40
 MIN_WITHIN_FRAMES = 3  # fewer frames of a subtask: no within-subtask correlation for that demonstration
@@ -157,10 +154,10 @@ def completion_lags(completion_frames: Sequence[int], ends: np.ndarray) -> np.nd
     return lags
 
 
-def false_completions(events: Sequence[Sequence[int]], episode: RandomPlay, scheme: int) -> np.ndarray:
+def false_completions(events: Sequence[Sequence[int]], episode: Clip, scheme: int) -> np.ndarray:
     """(subtasks,) bool: the tracker marked k done (on the frames `events[k]`, see
     Replay.completion_events) at least once on a frame where k was not really complete
-    (`RandomPlay.not_yet_completed`: the ordered progress, mapped through the scheme's labels)."""
+    (`Clip.not_yet_completed`: the ordered progress, mapped through the scheme's labels)."""
     flags = np.zeros(len(events), dtype=bool)
     for k, frames in enumerate(events):
         not_done = episode.not_yet_completed(scheme, k)
@@ -169,38 +166,33 @@ def false_completions(events: Sequence[Sequence[int]], episode: RandomPlay, sche
 
 
 # --- negative episodes -----------------------------------------------------------------------
-def wrong_order_episodes(view: str, image_size: int, episodes: int, seed: int) -> list[RandomPlay]:
-    """The scripted expert placing blue, then red, then yellow (WRONG_ORDER), recorded like random play."""
-    env = SweepToTopEnv(config=EnvConfig(view=view, image_size=image_size))
-    try:
-        return [
-            play(env, ScriptedExpert(seed=seed + episode, order=WRONG_ORDER).act, seed + episode, view, image_size)
-            for episode in range(episodes)
-        ]
-    finally:
-        env.close()
-
-
-def record_negatives(view: str, image_size: int, episodes: int) -> dict[str, list[RandomPlay]]:
-    """`episodes` random-policy (pretrain.random_play) and `episodes` wrong-order expert episodes, on
-    the layout seeds NEGATIVE_SEEDS[kind] + i; frames after every step."""
-    return {
+def record_negatives(
+    view: str, image_size: int, episodes: int, clip_files: Sequence[str] = ()
+) -> dict[str, list[Clip]]:
+    """`episodes` random-policy (clips.random_play) and `episodes` wrong-order expert episodes, on
+    the layout seeds NEGATIVE_SEEDS[kind] + i, frames after every step; and, if given, every
+    clip of `clip_files` (kind "clips", e.g. a trained policy's own rollouts)."""
+    negatives = {
         "random": random_play(view, image_size, episodes, seed=NEGATIVE_SEEDS["random"]),
-        "wrong_order": wrong_order_episodes(view, image_size, episodes, NEGATIVE_SEEDS["wrong_order"]),
+        "wrong_order": wrong_order_play(view, image_size, episodes, NEGATIVE_SEEDS["wrong_order"], (WRONG_ORDER,)),
     }
+    if clip_files:
+        negatives["clips"] = [clip for path in clip_files for clip in load_clips(path, view, image_size)]
+    return negatives
 
 
-def describe_negatives(negatives: dict[str, list[RandomPlay]]) -> dict[str, Any]:
+def describe_negatives(negatives: dict[str, list[Clip]], clip_files: Sequence[str] = ()) -> dict[str, Any]:
     """What the negatives were, per kind, with the true ordered progress they reached."""
     policies = {
         "random": "uniform random actions",
         "wrong_order": f"scripted expert, block order {list(WRONG_ORDER)} (blue, red, yellow)",
+        "clips": f"labelled clip files {list(clip_files)}",
     }
     described = {}
     for kind, episodes in negatives.items():
         described[kind] = {
             "episodes": len(episodes),
-            "first_seed": NEGATIVE_SEEDS[kind],
+            "first_seed": NEGATIVE_SEEDS.get(kind),
             "policy": policies[kind],
             "true_final_progress_mean": float(np.mean([e.progress[-1] for e in episodes])) if episodes else None,
             "true_progress_max": int(max(e.progress.max() for e in episodes)) if episodes else None,
@@ -210,7 +202,7 @@ def describe_negatives(negatives: dict[str, list[RandomPlay]]) -> dict[str, Any]
 
 def negative_flags(
     model: RewardModel,
-    episodes: list[RandomPlay],
+    episodes: list[Clip],
     embeddings: list[np.ndarray],
     scheme: int,
     variant: str,
@@ -530,15 +522,17 @@ def evaluate(
     progress_bar: bool = True,
     scorer_options: dict[str, Any] | None = None,
     negative_episodes: int = DEFAULT_NEGATIVE_EPISODES,
+    clip_files: Sequence[str] = (),
 ) -> dict[str, Any]:
-    """The report over `demos` for every scheme, with `negative_episodes` negatives of each kind;
+    """The report over `demos` for every scheme, with `negative_episodes` negatives of each kind
+    (and the clips of `clip_files`);
     every reward is scored by `RewardScorer(model, scheme, variant, **scorer_options)`."""
     out.mkdir(parents=True, exist_ok=True)
     embeddings = [
         model.embed(demo.frames) for demo in tqdm(demos, desc="embedding", disable=not progress_bar, leave=False)
     ]
     with tqdm(total=1, desc="negative episodes", disable=not progress_bar, leave=False) as bar:
-        negatives = record_negatives(model.view, model.image_size, negative_episodes)
+        negatives = record_negatives(model.view, model.image_size, negative_episodes, clip_files)
         bar.update(1)
     negative_embeddings = {
         kind: [model.embed(episode.frames) for episode in episodes] for kind, episodes in negatives.items()
@@ -547,7 +541,7 @@ def evaluate(
         "model": model.metadata,
         "normalisation": __doc__,
         "scorer_options": json_ready(scorer_options),
-        "negatives": describe_negatives(negatives),
+        "negatives": describe_negatives(negatives, clip_files),
         "notes": SUMMARY_NOTES,
         "schemes": {},
     }
@@ -560,7 +554,7 @@ def evaluate(
         ]
         flags = {
             kind: negative_flags(model, negatives[kind], negative_embeddings[kind], scheme, variant, scorer_options)
-            for kind in NEGATIVE_KINDS
+            for kind in negatives
         }
         summary = {"variant": variant, "scorer": scorer, **summarise(results)}
         summary["per_subtask"] = per_subtask_summary(results, scheme, flags)
@@ -586,6 +580,7 @@ SUBTASK_COLUMNS = (  # the summary table's per-subtask columns: title, width
     ("miss", 7),
     ("false rand", 11),
     ("false wrong", 12),
+    ("false clips", 12),
 )
 
 
@@ -619,6 +614,7 @@ def format_summary(report: dict[str, Any]) -> str:
                 (sub["miss_rate"], ".1%"),
                 (false.get("random"), ".1%"),
                 (false.get("wrong_order"), ".1%"),
+                (false.get("clips"), ".1%"),
             )
             cells = "".join(
                 _number(value, spec, width) for (value, spec), (_, width) in zip(values, SUBTASK_COLUMNS, strict=True)
@@ -648,6 +644,13 @@ def main(argv: list[str] | None = None) -> int:
         default=DEFAULT_NEGATIVE_EPISODES,
         help=f"random-policy and wrong-order episodes, each, for the false-completion rates (default "
         f"{DEFAULT_NEGATIVE_EPISODES}; 0 skips them)",
+    )
+    parser.add_argument(
+        "--clips",
+        nargs="+",
+        default=[],
+        metavar="FILE",
+        help="labelled clip files (inest-record-clips) counted as negatives too (false clips)",
     )
     parser.add_argument(
         "--scorer-option",
@@ -681,8 +684,9 @@ def main(argv: list[str] | None = None) -> int:
             Path(args.out),
             scorer_options=scorer_options,
             negative_episodes=args.negative_episodes,
+            clip_files=args.clips,
         )
-    except (ModelError, DatasetError, ScorerOptionError) as error:
+    except (ModelError, DatasetError, ScorerOptionError, ClipError) as error:
         print(f"inest-reward-quality: {error}", file=sys.stderr)
         return 2
     print(format_summary(report))

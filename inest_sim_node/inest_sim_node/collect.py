@@ -70,7 +70,7 @@ def record_episode(env: SweepToTopEnv, expert: ScriptedExpert, seed: int) -> Epi
     expert.reset(seed=seed)
     size = env.config.image_size
     ego, allo = [env.render_camera("ego", size)], [env.render_camera("allo", size)]
-    states, progress, held = [env.state_vector()], [env.progress], [holds_current_block(env)]
+    states, progress, held = [env.state_vector()], [env.progress], [env.holds_current_block]
     actions, rewards = [], []
     truncated, success = False, False
     while not (truncated or success):
@@ -81,7 +81,7 @@ def record_episode(env: SweepToTopEnv, expert: ScriptedExpert, seed: int) -> Epi
         allo.append(env.render_camera("allo", size))
         states.append(env.state_vector())
         progress.append(env.progress)
-        held.append(holds_current_block(env))
+        held.append(env.holds_current_block)
         actions.append(action)
         rewards.append(reward)
     if not success:
@@ -101,12 +101,6 @@ def record_episode(env: SweepToTopEnv, expert: ScriptedExpert, seed: int) -> Epi
         ends=ends,
         text=np.array([DESCRIPTIONS[3][label] for label in labels[3]]),
     )
-
-
-def holds_current_block(env: SweepToTopEnv) -> bool:
-    """Whether the block the task needs next sits in the gripper (the 6-subtask scheme's grasp)."""
-    assert env.world is not None
-    return env.progress < 3 and env.world.in_gripper(env.progress)
 
 
 # --- worker processes -----------------------------------------------------------------

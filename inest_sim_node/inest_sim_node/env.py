@@ -150,6 +150,12 @@ class SweepToTopEnv(gym.Env):
         # Contacts may push a body a hair past a wall; keep the vector inside its declared space.
         return np.clip(state, self._state_space.low, self._state_space.high).astype(np.float32)
 
+    @property
+    def holds_current_block(self) -> bool:
+        """Whether the block the task needs next sits in the gripper (the 6-subtask scheme's grasp)."""
+        assert self.world is not None
+        return self.progress < len(BLOCK_COLOURS) and self.world.in_gripper(self.progress)
+
     def _approach(self) -> tuple[float, bool] | None:
         """The approach oracle's (robot-to-current-block distance, block held), if it is the reward."""
         if self.config.reward != "approach" or self.progress >= len(BLOCK_COLOURS):
@@ -178,4 +184,5 @@ class SweepToTopEnv(gym.Env):
             "progress": progress,
             "is_success": progress == len(BLOCK_COLOURS),
             "in_goal": self._gaps == 0.0,
+            "held": self.holds_current_block,
         }

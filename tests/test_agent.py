@@ -72,6 +72,9 @@ def test_scoring_several_steps_at_once_gives_the_rewards_of_scoring_every_step(t
         return env
 
     every_step, batched = learned_reward_env(1), learned_reward_env(3)
+    with pytest.raises(RuntimeError, match="only a reward-batching learner"):
+        batched.step(np.zeros((2, 3), np.float32))  # nobody holds its NaN rewards back
+    batched.accept_deferred_rewards()  # what learners.RewardBatchingMixin does
     rng = np.random.default_rng(0)
     expected = []
     for _ in range(25):  # the 20-step episodes end inside a batch
@@ -230,8 +233,9 @@ def test_overlapped_updates_run_as_many_updates_on_the_same_transitions(tmp_path
     plain = Trainer(config, tmp_path / "plain", progress_bar=False)
     env = UpdatesWhileStepping(make_vec_env(config.num_envs, EnvConfig(reward=config.oracle), config.seed))
     overlapped = Trainer(config, tmp_path / "overlapped", progress_bar=False, env=env, overlap_updates=True)
-    env.model = overlapped.model
-    env.while_waiting = overlapped.model.run_pending_updates
+    env.model = overlapped.model  # the trainer hands the env its updates (while_waiting)
+    with pytest.raises(ValueError, match="overlapped updates need an env"):
+        Trainer(config, tmp_path / "nowhere", progress_bar=False, overlap_updates=True)  # in-process envs never wait
     plain.train()
     overlapped.train()
     assert overlapped.model._n_updates == plain.model._n_updates > 0

@@ -43,3 +43,81 @@ def test_rclpy_is_available_from_the_wheels():
     subprocess.run(
         [sys.executable, "-c", "import rclpy, sensor_msgs.msg, std_msgs.msg"], check=True, cwd=ROOT / "tests"
     )
+
+
+# top-level import -> the rosdep key package.xml declares it as (`-pip`: installed from PyPI, pinned
+# in requirements.txt; docker/Dockerfile skips those keys in `rosdep install`)
+ROSDEP_KEYS = {
+    "numpy": "python3-numpy",
+    "cv2": "python3-opencv",
+    "PIL": "python3-pil",
+    "tqdm": "python3-tqdm",
+    "scipy": "python3-scipy",
+    "matplotlib": "python3-matplotlib",
+    "yaml": "python3-yaml",
+    "pymunk": "python3-pymunk-pip",
+    "gymnasium": "python3-gymnasium-pip",
+    "torch": "python3-torch-pip",
+    "safetensors": "python3-safetensors-pip",
+    "tensorboard": "python3-tensorboard-pip",
+    "stable_baselines3": "python3-stable-baselines3-pip",
+    "sb3_contrib": "python3-sb3-contrib-pip",
+    "sbx": "python3-sbx-rl-pip",
+    "jax": "python3-jax-pip",
+}
+# imports no import statement shows: by name (learners.LEARNERS) or through another library
+INDIRECT_IMPORTS = {
+    "inest_reward_node": {"tensorboard"},  # torch.utils.tensorboard.SummaryWriter
+    "inest_agent_node": {"tensorboard", "sb3_contrib"},  # SB3's tensorboard_log; learners.LEARNERS["crossq"]
+}
+
+
+def imported_modules(package: str) -> set[str]:
+    """Top-level names of every module the package's sources import (lazy imports included)."""
+    import ast
+
+    names: set[str] = set()
+    for source in (ROOT / package / package).glob("*.py"):
+        for node in ast.walk(ast.parse(source.read_text())):
+            if isinstance(node, ast.Import):
+                names.update(alias.name.split(".")[0] for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names.add(node.module.split(".")[0])
+    return (names | INDIRECT_IMPORTS.get(package, set())) - set(sys.stdlib_module_names) - {package}
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_package_xml_declares_every_import(package):
+    manifest = ET.parse(ROOT / package / "package.xml").getroot()
+    declared = {element.text for element in manifest if element.tag in ("depend", "exec_depend")}
+    missing = []
+    for module in sorted(imported_modules(package)):
+        key = ROSDEP_KEYS.get(module, module)  # ROS packages (rclpy, *_msgs, inest_*) are their own keys
+        if key not in declared:
+            missing.append(f"{module} (as {key})")
+    assert not missing, f"{package}/package.xml lacks: {', '.join(missing)}"
+
+
+def test_docker_skips_the_keys_pip_installs():
+    keys = set()
+    for package in PACKAGES:
+        manifest = ET.parse(ROOT / package / "package.xml").getroot()
+        keys |= {element.text for element in manifest if element.text and element.text.endswith("-pip")}
+    dockerfile = (ROOT / "docker" / "Dockerfile").read_text()
+    assert all(key in dockerfile for key in keys), sorted(key for key in keys if key not in dockerfile)
+
+
+ROS_ADAPTERS = {"node", "graph_env", "rosutil"}  # the only modules that may import rclpy
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_only_the_ros_adapters_import_rclpy(package):
+    modules = sorted(
+        f"{package}.{path.stem}"
+        for path in (ROOT / package / package).glob("*.py")
+        if path.stem not in ROS_ADAPTERS | {"__init__"}
+    )
+    code = (
+        f"import sys, importlib; [importlib.import_module(m) for m in {modules!r}]; assert 'rclpy' not in sys.modules"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)

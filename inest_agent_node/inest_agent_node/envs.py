@@ -77,8 +77,9 @@ class LearnedRewardVecEnv(VecEnvWrapper):
     (RewardScorer.score_embeddings with rounds). step() then returns NaN rewards (a reward that
     is not known yet must not be trained on) and the learned ones come out of take_rewards() in
     step order, for an algorithm that holds each transition until its reward is known
-    (learners.RewardBatchingMixin). The subtask and intrinsic entries of a step's infos are filled
-    in when it is scored.
+    (learners.RewardBatchingMixin), which says so with `accept_deferred_rewards()`; stepping
+    without it raises instead of handing anyone NaN rewards. The subtask and intrinsic entries
+    of a step's infos are filled in when it is scored.
     """
 
     def __init__(self, venv: VecEnv, scorer: RewardScorer, record_every: int = 10, batch_steps: int = 1) -> None:
@@ -94,6 +95,11 @@ class LearnedRewardVecEnv(VecEnvWrapper):
         self.visited: list[np.ndarray] = []  # every `record_every`-th vector step's embeddings, for coverage
         self.waiting: list[WaitingStep] = []
         self.scored: deque[np.ndarray] = deque()  # learned rewards not yet taken, oldest first
+        self.deferred_rewards_accepted = False
+
+    def accept_deferred_rewards(self) -> None:
+        """Called by the one consumer that holds transitions until take_rewards() (RewardBatchingMixin)."""
+        self.deferred_rewards_accepted = True
 
     def exploration_state(self) -> dict[str, np.ndarray]:
         """Novelty memories and the coverage record: what a resumed run must not forget."""
@@ -112,6 +118,14 @@ class LearnedRewardVecEnv(VecEnvWrapper):
         self.score_waiting()  # frames of the episodes being cut off still earn their rewards
         self.scorer.reset()
         return self.venv.reset()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        if self.batch_steps > 1 and not self.deferred_rewards_accepted:
+            raise RuntimeError(
+                f"LearnedRewardVecEnv(batch_steps={self.batch_steps}) returns NaN until a batch is scored: "
+                "only a reward-batching learner (learners.RewardBatchingMixin) may step it; use batch_steps=1"
+            )
+        self.venv.step_async(actions)
 
     def step_wait(self):
         observations, env_rewards, dones, infos = self.venv.step_wait()

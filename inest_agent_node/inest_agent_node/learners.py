@@ -5,7 +5,16 @@ algorithms subclass it too (sbx.common.off_policy_algorithm.OffPolicyAlgorithmJa
 sbx-rl 0.28.0), so `learn()` drives them all through the same two hooks the project overrides:
 `_store_transition(replay_buffer, buffer_action, new_obs, reward, dones, infos)` after every
 vector step and `train(gradient_steps, batch_size)` after every rollout. Both behaviours are
-therefore mixins that go on top of whichever class `LEARNERS` names.
+therefore mixins that go on top of whichever class `LEARNERS` names (`build_learner_class`):
+
+- OverlappedUpdatesMixin overrides `OffPolicyAlgorithm.train(gradient_steps, batch_size)` (it
+  defers the update to `run_pending_updates`, which calls the learner's own `train`);
+- RewardBatchingMixin overrides `OffPolicyAlgorithm._store_transition(...)` (holds a transition
+  until its learned reward is scored) and `BaseAlgorithm._excluded_save_params()` (the held
+  transitions are not saved).
+
+Neither touches `learn()`, `collect_rollouts()` or the policy; what runs around `learn()`
+(progress, evaluation, diagnostics, checkpoints) is callbacks.py's stable-baselines3 callbacks.
 
 JAX is imported only when an SBX learner is picked (`learner_class`), so the PyTorch path never
 pays its import time (~4 s with sbx) nor starts its thread pools; call `configure_jax_threads`
@@ -167,6 +176,8 @@ class RewardBatchingMixin:
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.held_transitions = deque()
+        if self.env is not None:
+            self.env.accept_deferred_rewards()  # this learner never trains on a reward still NaN
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "held_transitions"]

@@ -49,14 +49,19 @@ class AgentNodeConfig:
             raise ValueError(f"unknown mode {self.mode!r}; expected one of {MODES}")
 
 
+def agent_train_defaults() -> TrainConfig:
+    """The agent node's training defaults: the reward node's reward, whose intrinsic bonus the
+    reward node adds, and one torch thread (with updates overlapping the step, the other core
+    serves the simulators and the reward node)."""
+    return TrainConfig(reward="topic", intrinsic=IntrinsicConfig(mode="none"), threads=1)
+
+
 class AgentNode(Node):
     def __init__(self) -> None:
         super().__init__("inest_agent_node")
         self.settings = AgentNodeConfig(**declare_dataclass(self, AgentNodeConfig()))
-        # one torch thread: with updates overlapping the step, the other core serves simulators and reward node
-        defaults = TrainConfig(reward="topic", intrinsic=IntrinsicConfig(mode="none"), threads=1)
         self.train_config = TrainConfig.from_dict(
-            {**declare_dataclass(self, defaults), "num_envs": len(self.settings.namespaces)}
+            {**declare_dataclass(self, agent_train_defaults()), "num_envs": len(self.settings.namespaces)}
         )
 
     def run(self) -> None:
@@ -71,8 +76,6 @@ class AgentNode(Node):
                 print(format_table({f"{Path(policy).name} over the graph": result}), flush=True)
                 return
             trainer = Trainer(config, settings.out, settings.resume, env=env, overlap_updates=settings.overlap_updates)
-            if settings.overlap_updates:
-                graph.while_waiting = trainer.model.run_pending_updates  # the update runs while the simulators step
             result = trainer.train()
             print(format_table({f"{config.reward} ({trainer.model.num_timesteps} steps)": result}), flush=True)
             self.get_logger().info(f"wrote {Path(settings.out) / RESULTS_FILE}")

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 from inest_reward_node.clips import Clip, save_clips
 from inest_reward_node.model import ModelError
+from inest_sim_node.progress import track
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
-from tqdm import tqdm
 
 from .config import TrainConfig
 from .envs import FRAME_KEY, TRUE_PROGRESS, build_env
@@ -73,7 +73,7 @@ def record(run_dir: Path, episodes: int, seed: int, deterministic: bool, progres
     model = learner_class(config.learner).load(run_dir / CHECKPOINT_DIR / "model.zip", env=env)
     recorder = recorders[0]
     observations = env.reset()
-    with tqdm(total=episodes, desc="recording clips", unit="episode", disable=not progress_bar) as bar:
+    with track(total=episodes, desc="recording clips", unit="episode", disable=not progress_bar) as bar:
         while len(recorder.clips) < episodes:
             before = len(recorder.clips)
             observations = env.step(model.predict(observations, deterministic=deterministic)[0])[0]

@@ -5,7 +5,8 @@ history.json, diagnostics.json, exploration.npz with the novelty memories: the `
 point, written every `checkpoint_every` steps), tensorboard/ (evaluation scores and the reward
 diagnostics), and at the end results.json (final 150-episode evaluation, learning curve points,
 reward diagnostics per evaluation interval, coverage of the visited embeddings, config),
-learning_curve.png and coverage.png.
+learning_curve.png and coverage.png. Progress, evaluation, diagnostics and checkpoints during
+`learn()` are stable-baselines3 callbacks (callbacks.py); the learner classes are in learners.py.
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -25,15 +25,13 @@ from inest_reward_node.model import ModelError
 from inest_reward_node.runs import merge_settings, prepare_run_dir
 from inest_reward_node.stages import SHAPINGS, STAGE_SOURCES, TRACKERS
 from inest_sim_node.config import ORACLE_REWARDS
-from inest_sim_node.dataset import write_atomic
+from inest_sim_node.files import write_atomic
 from inest_sim_node.observation import STATE_OBSERVATIONS
-from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
-from stable_baselines3.common.vec_env import VecEnv, unwrap_vec_wrapper
-from tqdm import tqdm
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, unwrap_vec_wrapper
 
+from .callbacks import training_callbacks
 from .config import REWARDS, TrainConfig
-from .diagnostics import RewardDiagnostics
 from .envs import LearnedRewardVecEnv, build_env
 from .evaluate import EvalResult, evaluate_vec_env, format_table, plot_learning_curve
 from .learners import (
@@ -60,59 +58,22 @@ def deterministic(model: OffPolicyAlgorithm):
     return act
 
 
-class TrainingCallback(BaseCallback):
-    """Progress bar, reward diagnostics, periodic evaluation (TensorBoard `eval/score`,
-    `diagnostics/*`) and checkpoints."""
-
-    def __init__(self, trainer: Trainer) -> None:
-        super().__init__()
-        self.trainer = trainer
-        self.bar: tqdm | None = None
-        self.started = time.perf_counter()
-        self.start_steps = 0
-        self.diagnostics = RewardDiagnostics(trainer.config.num_envs, trainer.config.stage_subtasks)
-
-    def _on_training_start(self) -> None:
-        config = self.trainer.config
-        self.start_steps = self.num_timesteps
-        self.started = time.perf_counter()
-        self.bar = tqdm(
-            total=config.total_steps,
-            initial=self.num_timesteps,
-            unit="step",
-            desc=f"SAC {config.reward}",
-            disable=not self.trainer.progress_bar,
-        )
-
-    def _on_step(self) -> bool:
-        config = self.trainer.config
-        steps = self.num_timesteps
-        self.bar.update(steps - self.bar.n)
-        self.diagnostics.update(self.locals["infos"], self.locals["dones"], self.locals["rewards"])
-        if steps % config.eval_every < config.num_envs:
-            result = self.trainer.evaluate(config.eval_episodes)
-            self.trainer.history.append([steps, result.mean_score, result.score_std])
-            self.logger.record("eval/score", result.mean_score)
-            self.logger.record("eval/success_rate", result.success_rate)
-            diagnostics = self.diagnostics.summary()
-            self.trainer.diagnostics.append({"steps": steps, **diagnostics})
-            for name, value in diagnostics.items():
-                self.logger.record(f"diagnostics/{name}", value)
-            speed = (steps - self.start_steps) / max(time.perf_counter() - self.started, 1e-9)
-            self.bar.set_postfix({"score": f"{result.mean_score:.2f}", "steps/s": f"{speed:.0f}"})
-        if steps % config.checkpoint_every < config.num_envs:
-            self.trainer.save_checkpoint()
-        return True
-
-    def _on_training_end(self) -> None:
-        self.bar.close()
+def waiting_hook_owner(env: VecEnv) -> VecEnv:
+    """The vector env (`env` or one it wraps) with a `while_waiting` hook: work it runs while it
+    waits for a step (GraphVecEnv), which an overlapped learner's updates need."""
+    owner = env
+    while "while_waiting" not in vars(owner) and isinstance(owner, VecEnvWrapper):
+        owner = owner.venv
+    if "while_waiting" not in vars(owner):
+        raise ValueError("overlapped updates need an env that runs them while it steps (GraphVecEnv.while_waiting)")
+    return owner
 
 
 class Trainer:
     """SAC on in-process environments built from the config, or on `env` (the ROS graph's, with
     the observation path of the config). `overlap_updates`: defer each update (learners.OverlappedUpdatesMixin)
-    so that whoever owns `env` runs `model.run_pending_updates` while it steps
-    (GraphVecEnv.while_waiting)."""
+    and hand `model.run_pending_updates` to the env, which runs it while it steps: `env`, or a
+    vector env it wraps, must have a `while_waiting` hook (GraphVecEnv's)."""
 
     def __init__(
         self,
@@ -158,6 +119,8 @@ class Trainer:
                 seed=config.seed,
                 verbose=0,
             )
+        if overlap_updates:
+            waiting_hook_owner(self.env).while_waiting = self.model.run_pending_updates
 
     def evaluate(self, episodes: int) -> EvalResult:
         """The deterministic policy on the evaluation layouts, through the training observation path."""
@@ -189,7 +152,7 @@ class Trainer:
     def train(self) -> EvalResult:
         remaining = self.config.total_steps - self.model.num_timesteps
         if remaining > 0:
-            self.model.learn(remaining, callback=TrainingCallback(self), reset_num_timesteps=False, tb_log_name="sac")
+            self.model.learn(remaining, callback=training_callbacks(self), reset_num_timesteps=False, tb_log_name="sac")
             if isinstance(self.model, OverlappedUpdatesMixin):
                 self.model.run_pending_updates()  # the last update had no next step to overlap with
             self.save_checkpoint()
@@ -248,7 +211,7 @@ INTEGER_FLAGS = (
 def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", required=True, help="run folder")
-    parser.add_argument("--config", help="YAML file of training settings (see configs/train.yaml)")
+    parser.add_argument("--config", help="YAML file of training settings (see inest_agent_node/config/train.yaml)")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     parser.add_argument("--reward", choices=REWARDS)
     parser.add_argument("--model", help="reward model folder (a pretraining run's model/)")

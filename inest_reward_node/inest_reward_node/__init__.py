@@ -1,6 +1,6 @@
-"""INEST reward: representation learning and the learned reward (issue: representation learning).
+"""INEST reward: the representation learnt from demonstration videos and the reward it gives.
 
-Pure logic here never imports rclpy; the ROS 2 node will be a thin adapter module.
+The libraries here never import rclpy; `node` (the reward node) is the thin ROS 2 adapter.
 """
 
 __version__ = "0.1.0"

@@ -1,15 +1,30 @@
-"""Goal embeddings, XIRL distance scale, subtask-completion thresholds and per-subtask start distances
-from training demonstrations (the stage classifier is fitted next to them, see stages.py)."""
+"""Calibration of a pretrained encoder: goal embeddings, XIRL distance scale, subtask-completion
+thresholds, per-subtask start distances and embeddings, and the stage classifier (fitted by
+stages.py), from the training demonstrations and random, wrong-order and clip-file play.
+
+`calibrate()` computes all of them for every subtask scheme (TCC: 1, 3 and 6 subtasks; HOLD-R: 1);
+the functions above it are its parts.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from inest_sim_node.progress import track
 
-from .stages import StageClassifierConfig
+from .clips import load_clips, random_play, wrong_order_play
+from .data import Demo
+from .model import RewardModel, SubtaskGoals
+from .rewards import subtask_rewards
+from .stages import StageClassifierConfig, demo_stages, fit_stage_classifier, true_stages
+
+if TYPE_CHECKING:
+    from .pretrain import PretrainConfig
+
+TCC_SCHEMES = (1, 3, 6)
 
 
 @dataclass(frozen=True)
@@ -141,3 +156,56 @@ def calibrate_thresholds(
             threshold = max(threshold, min(negative_level, ceiling))
         thresholds.append(threshold)
     return thresholds
+
+
+def calibrate(
+    model: RewardModel, demos: list[Demo], config: PretrainConfig, progress_bar: bool = True
+) -> dict[str, SubtaskGoals]:
+    """Goal embeddings, XIRL scale, thresholds, start distances and embeddings and the stage classifier
+    per subtask scheme, from the training demonstrations (and random, wrong-order and clip-file
+    play, see CalibrationConfig)."""
+    embeddings = [
+        model.embed(demo.frames) for demo in track(demos, desc="embedding demos", leave=False, disable=not progress_bar)
+    ]
+    size = config.encoder.image_size
+    plays = random_play(config.view, size, config.calibration.random_episodes)
+    negatives = [model.embed(play.frames) for play in plays]
+    others = wrong_order_play(config.view, size, config.calibration.wrong_order_episodes)  # classifier only
+    others += [clip for path in config.calibration.clips for clip in load_clips(path, config.view, size)]
+    other_embeddings = [model.embed(clip.frames) for clip in others]
+    schemes = TCC_SCHEMES if config.method == "tcc" else (1,)
+    result = {}
+    for scheme in schemes:
+        ends = [demo.ends[scheme] for demo in demos]
+        goals = goal_embeddings(embeddings, ends)
+        partial = SubtaskGoals(goals, [], xirl_distance_scale(embeddings, goals[-1]))
+        rewards = [subtask_rewards(model, emb, partial) for emb in embeddings]
+        negative_rewards = [subtask_rewards(model, emb, partial) for emb in negatives]
+
+        def false_completions(subtask: int, scheme=scheme, negative_rewards=negative_rewards) -> list[np.ndarray]:
+            """Random play's reward for `subtask`, -inf where the subtask was really completed."""
+            return [
+                np.where(play.not_yet_completed(scheme, subtask), rewards[:, subtask], -np.inf)
+                for play, rewards in zip(plays, negative_rewards, strict=True)
+            ]
+
+        partial.thresholds = calibrate_thresholds(
+            lambda i, rewards=rewards: [r[:, i] for r in rewards],
+            ends,
+            scheme,
+            config.shaping.hold_steps,
+            config.calibration,
+            false_completions,
+        )
+        partial.start_distances = start_distances(embeddings, ends, goals)
+        partial.start_embeddings = start_embeddings(embeddings, ends)
+        partial.stage_classifier = fit_stage_classifier(
+            embeddings,
+            [demo_stages(demo.progress, demo.labels[scheme], scheme) for demo in demos],
+            scheme + 1,
+            negatives + other_embeddings,
+            [true_stages(clip.progress, clip.held, scheme) for clip in plays + others],
+            config.calibration.classifier,
+        )
+        result[str(scheme)] = partial
+    return result

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import torch
 from inest_sim_node.dataset import DemoDataset, Episode
-from tqdm import tqdm
+from inest_sim_node.progress import track
 
 from .encoders import resize_frames
 
@@ -45,7 +45,7 @@ def load_demos(
     dataset = DemoDataset(root)
     count = len(dataset.entries(split))
     count = count if limit is None else min(limit, count)
-    indices = tqdm(range(count), desc=f"loading {split}", unit="demo", disable=not progress_bar, leave=False)
+    indices = track(range(count), desc=f"loading {split}", unit="demo", disable=not progress_bar, leave=False)
     return [Demo.from_episode(dataset.load(split, index), view, image_size) for index in indices]
 
 

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from inest_sim_node.dataset import read_versioned_json, write_atomic
+from inest_sim_node.files import read_versioned_json, write_atomic
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 from torch import nn

@@ -5,6 +5,8 @@ share it: they differ only in their goal embeddings); `--method holdr` trains th
 baseline. Afterwards the goal embeddings, thresholds, start distances and stage classifier for
 1, 3 and 6 subtasks (HOLD-R: 1) are computed from the training demonstrations (and random and
 wrong-order play) and the model folder is written; `--resume` on a finished run recalibrates.
+(Each method's loss lives in objectives.py, calibration in calibrate.py; this module holds the
+configuration, the training loop and the command line.)
 
 Run folder: config.json (the full configuration), train_state.pt (weights, optimiser, RNG,
 history: the `--resume` point, written every `checkpoint_every` iterations), tensorboard/,
@@ -23,31 +25,22 @@ from typing import Any
 
 import numpy as np
 import torch
-from inest_sim_node.dataset import METADATA_FILE, DatasetError, read_metadata, sha256_of, write_atomic
-from tqdm import tqdm
+from inest_sim_node.dataset import METADATA_FILE, DatasetError, read_metadata
+from inest_sim_node.files import sha256_of, write_atomic
+from inest_sim_node.progress import track
 
-from .calibrate import (
-    CalibrationConfig,
-    calibrate_thresholds,
-    goal_embeddings,
-    start_distances,
-    start_embeddings,
-    xirl_distance_scale,
-)
-from .clips import load_clips, random_play, wrong_order_play
-from .data import AugmentConfig, Demo, augment_videos, load_demos, sample_goal_pairs, sample_tcc_batch
-from .encoders import ENCODER_KINDS, EncoderConfig, frames_to_tensor
+from .calibrate import CalibrationConfig, calibrate
+from .clips import load_clips
+from .data import AugmentConfig, Demo, load_demos
+from .encoders import ENCODER_KINDS, EncoderConfig
 from .holdr import HoldRConfig
 from .model import METHODS, RewardModel, SubtaskGoals, build_network, save_model
-from .rewards import subtask_rewards
+from .objectives import OBJECTIVES
 from .runs import prepare_run_dir
 from .shaping import ShapingConfig
-from .stages import demo_stages, fit_stage_classifier, true_stages
-from .tcc import tcc_loss
 
 STATE_FILE = "train_state.pt"
 MODEL_DIR = "model"
-TCC_SCHEMES = (1, 3, 6)
 
 
 @dataclass(frozen=True)
@@ -83,8 +76,7 @@ class PretrainConfig:
         for name in ("iterations", "videos_per_batch", "frames_per_video", "pairs_per_batch", "threads"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
-        if self.method == "tcc" and self.videos_per_batch < 2:
-            raise ValueError("TCC needs at least 2 videos per batch")
+        OBJECTIVES[self.method].check_config(self)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -92,99 +84,14 @@ class PretrainConfig:
     def settings_that_matter(self) -> set[str]:
         """Fields that change what this method trains, which a resumed run must keep. `iterations`
         may grow; shaping and calibration only affect the goals computed at the end."""
-        if self.method == "tcc":
-            unused = {"holdr", "pairs_per_batch"}
-        else:
-            unused = {"videos_per_batch", "frames_per_video", "temperature"}
+        unused = OBJECTIVES[self.method].unused_settings
         return set(self.to_dict()) - unused - {"iterations", "shaping", "calibration"}
-
-
-class Objective:
-    """A pretraining loss over batches drawn from demonstrations."""
-
-    def __init__(self, config: PretrainConfig, network: torch.nn.Module) -> None:
-        self.config = config
-        self.network = network
-
-    def embed_clips(self, clips: np.ndarray, generator: torch.Generator) -> torch.Tensor:
-        """uint8 (B, T, S, S, 3) -> augmented (B, T, D) embeddings."""
-        videos, frames, size = clips.shape[0], clips.shape[1], clips.shape[2]
-        images = frames_to_tensor(clips.reshape(-1, size, size, 3), channels_last=False)
-        images = augment_videos(images.view(videos, frames, 3, size, size), self.config.augment, generator)
-        images = images.flatten(0, 1)
-        if self.config.encoder.channels_last:
-            images = images.contiguous(memory_format=torch.channels_last)
-        return self.network(images).view(videos, frames, -1)
-
-    def loss(self, demos: list[Demo], rng: np.random.Generator, generator: torch.Generator) -> torch.Tensor:
-        config = self.config
-        if config.method == "tcc":
-            clips, positions = sample_tcc_batch(demos, config.videos_per_batch, config.frames_per_video, rng)
-            embeddings = self.embed_clips(clips, generator)
-            return tcc_loss(embeddings, torch.from_numpy(positions), config.temperature)
-        starts, goals, gaps = sample_goal_pairs(demos, config.pairs_per_batch, rng)
-        embeddings = self.embed_clips(np.stack([starts, goals], axis=1), generator)
-        predicted = self.network.gap(embeddings[:, 0], embeddings[:, 1])
-        return torch.nn.functional.mse_loss(predicted, torch.from_numpy(gaps) / config.holdr.steps_unit)
 
 
 def dataset_hash(root: str | Path) -> str:
     """sha256 of metadata.json, which lists every episode file's own sha256."""
     read_metadata(Path(root))
     return sha256_of(Path(root) / METADATA_FILE)
-
-
-def calibrate(
-    model: RewardModel, demos: list[Demo], config: PretrainConfig, progress_bar: bool = True
-) -> dict[str, SubtaskGoals]:
-    """Goal embeddings, XIRL scale, thresholds, start distances and embeddings and the stage classifier
-    per subtask scheme, from the training demonstrations (and random, wrong-order and clip-file
-    play, see CalibrationConfig)."""
-    embeddings = [
-        model.embed(demo.frames) for demo in tqdm(demos, desc="embedding demos", leave=False, disable=not progress_bar)
-    ]
-    size = config.encoder.image_size
-    plays = random_play(config.view, size, config.calibration.random_episodes)
-    negatives = [model.embed(play.frames) for play in plays]
-    others = wrong_order_play(config.view, size, config.calibration.wrong_order_episodes)  # classifier only
-    others += [clip for path in config.calibration.clips for clip in load_clips(path, config.view, size)]
-    other_embeddings = [model.embed(clip.frames) for clip in others]
-    schemes = TCC_SCHEMES if config.method == "tcc" else (1,)
-    result = {}
-    for scheme in schemes:
-        ends = [demo.ends[scheme] for demo in demos]
-        goals = goal_embeddings(embeddings, ends)
-        partial = SubtaskGoals(goals, [], xirl_distance_scale(embeddings, goals[-1]))
-        rewards = [subtask_rewards(model, emb, partial) for emb in embeddings]
-        negative_rewards = [subtask_rewards(model, emb, partial) for emb in negatives]
-
-        def false_completions(subtask: int, scheme=scheme, negative_rewards=negative_rewards) -> list[np.ndarray]:
-            """Random play's reward for `subtask`, -inf where the subtask was really completed."""
-            return [
-                np.where(play.not_yet_completed(scheme, subtask), rewards[:, subtask], -np.inf)
-                for play, rewards in zip(plays, negative_rewards, strict=True)
-            ]
-
-        partial.thresholds = calibrate_thresholds(
-            lambda i, rewards=rewards: [r[:, i] for r in rewards],
-            ends,
-            scheme,
-            config.shaping.hold_steps,
-            config.calibration,
-            false_completions,
-        )
-        partial.start_distances = start_distances(embeddings, ends, goals)
-        partial.start_embeddings = start_embeddings(embeddings, ends)
-        partial.stage_classifier = fit_stage_classifier(
-            embeddings,
-            [demo_stages(demo.progress, demo.labels[scheme], scheme) for demo in demos],
-            scheme + 1,
-            negatives + other_embeddings,
-            [true_stages(clip.progress, clip.held, scheme) for clip in plays + others],
-            config.calibration.classifier,
-        )
-        result[str(scheme)] = partial
-    return result
 
 
 def model_metadata(config: PretrainConfig, iterations_done: int, subtasks: dict[str, SubtaskGoals]) -> dict[str, Any]:
@@ -229,7 +136,7 @@ class Pretrainer:
         self.optimizer = torch.optim.AdamW(
             self.network.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay
         )
-        self.objective = Objective(config, self.network)
+        self.objective = OBJECTIVES[config.method](config, self.network)
         self.rng = np.random.default_rng(config.seed)
         self.generator = torch.Generator().manual_seed(config.seed)
         self.iteration = 0
@@ -277,7 +184,7 @@ class Pretrainer:
         torch.set_num_threads(config.threads)
         writer = SummaryWriter(str(self.run_dir / "tensorboard"))
         self.network.train()
-        bar = tqdm(
+        bar = track(
             total=config.iterations,
             initial=self.iteration,
             desc=f"pretrain {config.method}",

@@ -66,9 +66,9 @@ from typing import Any
 import numpy as np
 from inest_sim_node.dataset import DatasetError
 from inest_sim_node.expert import WRONG_ORDER
+from inest_sim_node.progress import track
 from inest_sim_node.world import BLOCK_COLOURS
 from scipy.stats import spearmanr
-from tqdm import tqdm
 
 from .calibrate import subtask_starts
 from .clips import Clip, ClipError, load_clips, random_play, wrong_order_play
@@ -529,9 +529,9 @@ def evaluate(
     every reward is scored by `RewardScorer(model, scheme, variant, **scorer_options)`."""
     out.mkdir(parents=True, exist_ok=True)
     embeddings = [
-        model.embed(demo.frames) for demo in tqdm(demos, desc="embedding", disable=not progress_bar, leave=False)
+        model.embed(demo.frames) for demo in track(demos, desc="embedding", disable=not progress_bar, leave=False)
     ]
-    with tqdm(total=1, desc="negative episodes", disable=not progress_bar, leave=False) as bar:
+    with track(total=1, desc="negative episodes", disable=not progress_bar, leave=False) as bar:
         negatives = record_negatives(model.view, model.image_size, negative_episodes, clip_files)
         bar.update(1)
     negative_embeddings = {

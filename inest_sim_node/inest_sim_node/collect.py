@@ -24,7 +24,6 @@ import cv2
 import gymnasium
 import numpy as np
 import pymunk
-from tqdm import tqdm
 
 from . import __version__
 from .config import EnvConfig
@@ -40,6 +39,7 @@ from .dataset import (
 )
 from .env import STATE_FIELDS, SweepToTopEnv
 from .expert import ExpertConfig, ScriptedExpert
+from .progress import track
 from .subtasks import DESCRIPTIONS, SCHEMES, subtask_labels
 
 
@@ -204,7 +204,7 @@ def collect_dataset(
     context = multiprocessing.get_context("spawn" if sys.platform == "darwin" else "fork")
     with (
         context.Pool(collect.workers, _init_worker, (env_config, expert, root)) as pool,
-        tqdm(
+        track(
             total=collect.episodes, initial=len(metadata["kept"]), desc="demonstrations", disable=not show_progress
         ) as bar,
     ):

@@ -8,13 +8,13 @@ Layout of a dataset folder:
 Files are written atomically (temporary name, then rename), so an interrupted collection
 never leaves a half-written episode behind, and every read checks the recorded sha256 so
 a corrupt or truncated file is reported by name instead of feeding garbage to training.
+(The file helpers themselves, which the reward model and the trainer use too, are in files.py;
+they stay importable from here.)
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
-import os
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from .files import read_versioned_json, sha256_of, write_atomic
 from .subtasks import SCHEMES
 
 METADATA_FILE = "metadata.json"
@@ -89,25 +90,6 @@ class Episode:
         )
 
 
-def sha256_of(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for chunk in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
-
-
-def write_atomic(path: Path, write: Any) -> None:
-    """Call `write(temporary_path)`, then move the result into place in one rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.tmp")
-    try:
-        write(temporary)
-        os.replace(temporary, path)
-    finally:
-        temporary.unlink(missing_ok=True)
-
-
 def write_episode(path: Path, episode: Episode) -> str:
     """Write one episode file; returns its sha256 for the metadata."""
 
@@ -144,19 +126,6 @@ def write_metadata(root: Path, metadata: dict[str, Any]) -> None:
         temporary.write_text(json.dumps(metadata, indent=2, sort_keys=True) + "\n")
 
     write_atomic(root / METADATA_FILE, save)
-
-
-def read_versioned_json(path: Path, fmt: str, version: int, what: str, error: type[Exception]) -> dict[str, Any]:
-    """Read a JSON document that declares its format; `error` names the problem if it does not parse or match."""
-    if not path.is_file():
-        raise error(f"no {what} at {path.parent}: {path.name} is missing")
-    try:
-        document = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as reason:
-        raise error(f"corrupt {path}: {reason}") from reason
-    if not isinstance(document, dict) or document.get("format") != fmt or document.get("format_version") != version:
-        raise error(f"{path} is not an {fmt} v{version} {what}")
-    return document
 
 
 def read_metadata(root: Path) -> dict[str, Any]:

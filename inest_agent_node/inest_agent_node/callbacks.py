@@ -1,0 +1,132 @@
+"""The stable-baselines3 callbacks `inest-train` runs during `learn()`, one job each.
+
+`training_callbacks(trainer)` combines them in a `CallbackList`, in this order (all see the same
+vector step; the order matters only in that a checkpoint saves the history and diagnostics the
+evaluation of the same step has just added):
+
+- ProgressCallback: the tqdm bar (steps, and after each evaluation its score and steps/s);
+- RewardDiagnosticsCallback: every step's infos into diagnostics.RewardDiagnostics; every
+  `eval_every` steps their summary into `trainer.diagnostics` and TensorBoard `diagnostics/*`;
+- EvaluationCallback: every `eval_every` steps the deterministic policy on `eval_episodes`
+  evaluation episodes, into `trainer.history` and TensorBoard `eval/score`, `eval/success_rate`;
+- CheckpointCallback: every `checkpoint_every` steps `trainer.save_checkpoint()`.
+
+"Every N steps" is on the first vector step at or past each multiple of N (`due`), since
+`num_timesteps` grows by `num_envs` per vector step.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+from inest_sim_node.progress import track
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+from tqdm import tqdm
+
+from .diagnostics import RewardDiagnostics
+
+if TYPE_CHECKING:
+    from .train import Trainer
+
+
+def due(steps: int, every: int, num_envs: int) -> bool:
+    """Whether the vector step that brought the step count to `steps` crossed a multiple of `every`."""
+    return steps % every < num_envs
+
+
+class ProgressCallback(BaseCallback):
+    """The progress bar; `show_score` puts an evaluation's score and the training speed on it."""
+
+    def __init__(self, trainer: Trainer) -> None:
+        super().__init__()
+        self.trainer = trainer
+        self.bar: tqdm | None = None
+        self.started = time.perf_counter()
+        self.start_steps = 0
+
+    def _on_training_start(self) -> None:
+        config = self.trainer.config
+        self.start_steps = self.num_timesteps
+        self.started = time.perf_counter()
+        self.bar = track(
+            total=config.total_steps,
+            initial=self.num_timesteps,
+            unit="step",
+            desc=f"SAC {config.reward}",
+            disable=not self.trainer.progress_bar,
+        )
+
+    def _on_step(self) -> bool:
+        self.bar.update(self.num_timesteps - self.bar.n)
+        return True
+
+    def show_score(self, score: float) -> None:
+        speed = (self.num_timesteps - self.start_steps) / max(time.perf_counter() - self.started, 1e-9)
+        self.bar.set_postfix({"score": f"{score:.2f}", "steps/s": f"{speed:.0f}"})
+
+    def _on_training_end(self) -> None:
+        self.bar.close()
+
+
+class RewardDiagnosticsCallback(BaseCallback):
+    """What the reward paid for (diagnostics.py), summarised per evaluation interval."""
+
+    def __init__(self, trainer: Trainer) -> None:
+        super().__init__()
+        self.trainer = trainer
+        self.diagnostics = RewardDiagnostics(trainer.config.num_envs, trainer.config.stage_subtasks)
+
+    def _on_step(self) -> bool:
+        config = self.trainer.config
+        self.diagnostics.update(self.locals["infos"], self.locals["dones"], self.locals["rewards"])
+        if due(self.num_timesteps, config.eval_every, config.num_envs):
+            diagnostics = self.diagnostics.summary()
+            self.trainer.diagnostics.append({"steps": self.num_timesteps, **diagnostics})
+            for name, value in diagnostics.items():
+                self.logger.record(f"diagnostics/{name}", value)
+        return True
+
+
+class EvaluationCallback(BaseCallback):
+    """Periodic evaluation of the deterministic policy (Trainer.evaluate): the learning curve."""
+
+    def __init__(self, trainer: Trainer, progress: ProgressCallback | None = None) -> None:
+        super().__init__()
+        self.trainer = trainer
+        self.progress = progress
+
+    def _on_step(self) -> bool:
+        config = self.trainer.config
+        steps = self.num_timesteps
+        if due(steps, config.eval_every, config.num_envs):
+            result = self.trainer.evaluate(config.eval_episodes)
+            self.trainer.history.append([steps, result.mean_score, result.score_std])
+            self.logger.record("eval/score", result.mean_score)
+            self.logger.record("eval/success_rate", result.success_rate)
+            if self.progress is not None:
+                self.progress.show_score(result.mean_score)
+        return True
+
+
+class CheckpointCallback(BaseCallback):
+    """Periodic `Trainer.save_checkpoint()`, the `--resume` point (unlike stable-baselines3's own
+    CheckpointCallback it also writes the replay buffer, history, diagnostics and novelty memories,
+    each replacing the last one)."""
+
+    def __init__(self, trainer: Trainer) -> None:
+        super().__init__()
+        self.trainer = trainer
+
+    def _on_step(self) -> bool:
+        config = self.trainer.config
+        if due(self.num_timesteps, config.checkpoint_every, config.num_envs):
+            self.trainer.save_checkpoint()
+        return True
+
+
+def training_callbacks(trainer: Trainer) -> CallbackList:
+    """Progress, reward diagnostics, evaluation and checkpoints, in that order (see the module docstring)."""
+    progress = ProgressCallback(trainer)
+    evaluation = EvaluationCallback(trainer, progress)
+    return CallbackList([progress, RewardDiagnosticsCallback(trainer), evaluation, CheckpointCallback(trainer)])

@@ -1,0 +1,43 @@
+"""File helpers shared by the packages (datasets here, the reward model and pretraining runs in
+inest_reward_node, training checkpoints in inest_agent_node): atomic writes, sha256 of a file,
+and JSON documents that declare their format and version. Standard library only."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+
+def sha256_of(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for chunk in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def write_atomic(path: Path, write: Any) -> None:
+    """Call `write(temporary_path)`, then move the result into place in one rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".{path.name}.tmp")
+    try:
+        write(temporary)
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+
+
+def read_versioned_json(path: Path, fmt: str, version: int, what: str, error: type[Exception]) -> dict[str, Any]:
+    """Read a JSON document that declares its format; `error` names the problem if it does not parse or match."""
+    if not path.is_file():
+        raise error(f"no {what} at {path.parent}: {path.name} is missing")
+    try:
+        document = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as reason:
+        raise error(f"corrupt {path}: {reason}") from reason
+    if not isinstance(document, dict) or document.get("format") != fmt or document.get("format_version") != version:
+        raise error(f"{path} is not an {fmt} v{version} {what}")
+    return document

@@ -1,0 +1,37 @@
+"""Progress bars for long work: tqdm's bar on a terminal, plain lines when the output is a log
+file or a pipe (a line at most every LINE_INTERVAL seconds and one at the end), so that a log
+holds readable lines instead of hundreds of carriage-return redraws."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterable
+from typing import Any, TextIO
+
+from tqdm import tqdm
+
+LINE_INTERVAL = 30.0  # seconds between progress lines in a log
+
+
+class LineStream:
+    """Turns tqdm's carriage-return redraws into whole lines on `stream`."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+
+    def write(self, text: str) -> None:
+        line = text.replace("\r", "").strip()
+        if line:
+            self.stream.write(line + "\n")
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+
+def track(iterable: Iterable[Any] | None = None, **kwargs: Any) -> tqdm:
+    """tqdm(iterable, **kwargs), line-based when its output (`file`, default stderr) is not a terminal."""
+    stream = kwargs.pop("file", None) or sys.stderr
+    if kwargs.get("disable") or stream.isatty():
+        return tqdm(iterable, file=stream, **kwargs)
+    kwargs.setdefault("mininterval", LINE_INTERVAL)
+    return tqdm(iterable, file=LineStream(stream), ascii=True, ncols=100, **kwargs)

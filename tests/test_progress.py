@@ -1,0 +1,25 @@
+"""Progress output: a bar on a terminal, whole lines in a log."""
+
+from __future__ import annotations
+
+import io
+
+from inest_sim_node.progress import track
+
+
+class Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_a_log_gets_whole_lines_and_a_terminal_gets_the_bar():
+    log = io.StringIO()
+    for _ in track(range(1000), desc="work", file=log):
+        pass
+    lines = log.getvalue().splitlines()
+    assert "\r" not in log.getvalue() and 1 <= len(lines) <= 3  # first and last line, no redraws
+    assert lines[-1].startswith("work: 100%") and "1000/1000" in lines[-1]
+    terminal = Terminal()
+    for _ in track(range(10), desc="bar", file=terminal, mininterval=0):
+        pass
+    assert "\r" in terminal.getvalue()

@@ -180,12 +180,16 @@ class LateRewards(VecEnvWrapper):
     def take_rewards(self, at_most: int) -> list[np.ndarray]:
         return [self.scored.popleft() for _ in range(min(at_most, len(self.scored)))]
 
+    def accept_deferred_rewards(self) -> None:
+        self.accepted = True  # the learner promised to hold transitions back
+
 
 @pytest.mark.parametrize("name", NAMES)
 def test_reward_batching_stores_a_transition_once_its_reward_is_known(name, tmp_path):
     env = LateRewards(tiny_env(), batch_steps=4)
     no_updates = SacConfig(learning_starts=10_000, buffer_size=100, net_arch=(32, 32))
     model = tiny_model(name, env, no_updates, reward_batching=True)
+    assert env.accepted
     model.learn(10)
     buffer = model.replay_buffer
     assert buffer.size() == 8 and len(model.held_transitions) == 2  # steps 9 and 10 wait for their batch

@@ -1,12 +1,7 @@
 """Per-frame learned rewards of the three methods, and replaying a frame sequence through the tracker.
 
-- inest: per `RewardConfig.shaping` (stages.py): r(d) to the current subtask's goal (d rescaled,
-  see ShapingConfig; "thesis") or raw ("raw"), plus the bonus per completed subtask, the bonus
-  alone once the last subtask is done; or per-subtask progress, bonus x (completed + closeness
-  to the current goal) ("progress": by the distance to the goal; "segment": by where the frame
-  sits between the subtask's start and its goal).
-- xirl: -scale * d to the single (final) goal embedding.
-- holdr: -max(0, d(s, g) - d(g, g)) / T with d the predicted steps to the goal, T the horizon.
+Each reward variant (inest, xirl, holdr) is one class in `REWARDS`, chosen once by name: what the
+scorer calls per batch of embeddings, in the manner of the `imitation` library's reward functions.
 Which subtask a frame is in comes from `RewardConfig.tracker` (the thesis's threshold counter,
 the same with reopening, or the learned stage classifier) or, as a diagnostic only, from the
 simulator's true progress (`stage_source="privileged"`). Completion thresholds live on each
@@ -16,6 +11,7 @@ method's own per-subtask reward: r(d) for TCC models, the HOLD-R reward for HOLD
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -33,7 +29,6 @@ from .stages import (
     segment_closeness,
 )
 
-REWARD_VARIANTS = ("inest", "xirl", "holdr")
 THESIS_REWARD = RewardConfig(shaping="thesis", tracker="threshold")  # the reward as the thesis has it
 
 
@@ -41,17 +36,6 @@ def default_variant(model: RewardModel, scheme: int) -> str:
     if model.method == "holdr":
         return "holdr"
     return "xirl" if scheme == 1 else "inest"
-
-
-def check_variant(model: RewardModel, variant: str, scheme: int) -> None:
-    if variant not in REWARD_VARIANTS:
-        raise ValueError(f"unknown reward variant {variant!r}; expected one of {REWARD_VARIANTS}")
-    if (variant == "holdr") != (model.method == "holdr"):
-        raise ModelError(
-            f"the {variant} reward needs a {'holdr' if variant == 'holdr' else 'tcc'} model, not {model.method}"
-        )
-    if variant == "xirl" and scheme != 1:
-        raise ModelError(f"the xirl reward has one goal embedding; it cannot use {scheme} subtasks")
 
 
 def inest_distance_unit(model: RewardModel, goals: SubtaskGoals) -> float:
@@ -64,21 +48,126 @@ def goal_distances(embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:
     return np.linalg.norm(np.asarray(embeddings)[:, None, :] - goals.goals[None], axis=-1)
 
 
-def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:
-    """(N, subtasks): each frame's completion-test reward against every subtask goal."""
-    if model.method == "holdr":
+def closeness(distances: np.ndarray, start_distances: np.ndarray) -> np.ndarray:
+    """Per-subtask progress in [0, 1]: 1 - min(1, d_k / d_k_start)."""
+    return 1.0 - np.minimum(1.0, np.asarray(distances) / np.asarray(start_distances))
+
+
+class Batch(NamedTuple):
+    """A batch as the variants see it, per row, with the tracker's subtask and doneness before and after it."""
+
+    per_subtask: np.ndarray
+    embeddings: np.ndarray
+    segments: np.ndarray | None
+    before: np.ndarray
+    was_done: np.ndarray
+    after: np.ndarray
+    done: np.ndarray
+
+
+class LearnedReward:
+    """One reward variant. The scorer calls `subtask_rewards` on a batch of embeddings (what the trackers
+    test) and, once the trackers have taken the batch, `distance`: each frame's reward without the
+    subtask bonus, `bonus` per completed subtask."""
+
+    name: str
+    method = "tcc"  # the kind of model the variant needs
+    uses_segments = False  # whether `distance` needs each frame's segment closeness
+    bonus = 0.0
+
+    def __init__(self, model: RewardModel, goals: SubtaskGoals, config: RewardConfig) -> None:
+        self.model, self.goals, self.config = model, goals, config
+
+    @classmethod
+    def check(cls, model: RewardModel, scheme: int) -> None:
+        if model.method != cls.method:
+            raise ModelError(f"the {cls.name} reward needs a {cls.method} model, not {model.method}")
+
+    @staticmethod
+    def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:
+        """(N, subtasks): each frame's completion-test reward against every subtask goal (TCC: r(d))."""
+        return distance_reward(goal_distances(embeddings, goals) * inest_distance_unit(model, goals), model.shaping)
+
+    def distance(self, batch: Batch) -> np.ndarray:
+        raise NotImplementedError
+
+
+class InestReward(LearnedReward):
+    """Per `RewardConfig.shaping` (stages.py): r(d) to the current subtask's goal (d rescaled, see
+    ShapingConfig; "thesis") or raw ("raw"), plus the bonus per completed subtask, the bonus alone once
+    the last subtask is done; or per-subtask progress, bonus x (completed + closeness to the current
+    goal) ("progress": by the distance to the goal; "segment": by where the frame sits between the
+    subtask's start and its goal)."""
+
+    name = "inest"
+
+    def __init__(self, model: RewardModel, goals: SubtaskGoals, config: RewardConfig) -> None:
+        super().__init__(model, goals, config)
+        self.bonus = model.shaping.subtask_bonus
+        self.uses_segments = config.shaping == "segment"
+        self.start_distances = None
+        if config.shaping == "progress":
+            self.start_distances = np.asarray(goals.require_start_distances(), dtype=np.float64)
+
+    def distance(self, batch: Batch) -> np.ndarray:
+        shaping = self.config.shaping
+        if shaping == "thesis":
+            shaped = batch.per_subtask
+        elif shaping == "segment":
+            shaped = self.bonus * batch.segments
+        elif shaping == "raw":
+            shaped = distance_reward(goal_distances(batch.embeddings, self.goals), self.model.shaping)
+        else:
+            shaped = self.bonus * closeness(goal_distances(batch.embeddings, self.goals), self.start_distances)
+        if shaping in ("progress", "segment"):  # the stage after this frame: continuous at a switch
+            stage, live = batch.after, ~batch.done
+        else:
+            stage, live = batch.before, ~batch.was_done
+        distance = np.zeros(len(stage))
+        distance[live] = shaped[np.flatnonzero(live), stage[live]]
+        return distance
+
+
+class XirlReward(LearnedReward):
+    """-scale * d to the single (final) goal embedding."""
+
+    name = "xirl"
+
+    @classmethod
+    def check(cls, model: RewardModel, scheme: int) -> None:
+        super().check(model, scheme)
+        if scheme != 1:
+            raise ModelError(f"the xirl reward has one goal embedding; it cannot use {scheme} subtasks")
+
+    def distance(self, batch: Batch) -> np.ndarray:
+        return -self.goals.distance_scale * np.linalg.norm(batch.embeddings - self.goals.goals[-1], axis=1)
+
+
+class HoldrReward(LearnedReward):
+    """-max(0, d(s, g) - d(g, g)) / T with d the predicted steps to the goal, T the horizon."""
+
+    name = "holdr"
+    method = "holdr"
+
+    @staticmethod
+    def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:
         horizon = model.network.config.steps_unit
         columns = []
         for goal in goals.goals:
             to_goal = model.holdr_steps(embeddings, goal)
             columns.append(-np.maximum(0.0, to_goal - model.holdr_steps_at_goal(goal)) / horizon)
         return np.stack(columns, axis=1)
-    return distance_reward(goal_distances(embeddings, goals) * inest_distance_unit(model, goals), model.shaping)
+
+    def distance(self, batch: Batch) -> np.ndarray:
+        return batch.per_subtask[:, -1].astype(np.float64)
 
 
-def closeness(distances: np.ndarray, start_distances: np.ndarray) -> np.ndarray:
-    """Per-subtask progress in [0, 1]: 1 - min(1, d_k / d_k_start)."""
-    return 1.0 - np.minimum(1.0, np.asarray(distances) / np.asarray(start_distances))
+REWARDS: dict[str, type[LearnedReward]] = {reward.name: reward for reward in (InestReward, XirlReward, HoldrReward)}
+
+
+def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:
+    """(N, subtasks): each frame's completion-test reward against every subtask goal."""
+    return REWARDS[default_variant(model, len(goals.goals))].subtask_rewards(model, embeddings, goals)
 
 
 @dataclass
@@ -120,23 +209,22 @@ class RewardScorer:
     ) -> None:
         self.model = model
         self.variant = variant or default_variant(model, scheme)
-        check_variant(model, self.variant, scheme)
+        if self.variant not in REWARDS:
+            raise ValueError(f"unknown reward variant {self.variant!r}; expected one of {tuple(REWARDS)}")
+        REWARDS[self.variant].check(model, scheme)
         self.goals = model.goals(scheme)
         self.scheme = scheme
-        self.config = config or RewardConfig()
+        self.config = config = config or RewardConfig()
         self.intrinsic = intrinsic or IntrinsicConfig(mode="none")
-        self.hold_steps = self.config.hold_steps or model.shaping.hold_steps
-        config, inest = self.config, self.variant == "inest"
+        self.hold_steps = config.hold_steps or model.shaping.hold_steps
         if config.stage_source == "privileged" and scheme not in (1, 3):
             raise ValueError(
                 f"stage_source 'privileged' (a diagnostic) knows the true stage of the 1- and 3-subtask "
                 f"schemes only, not {scheme}"
             )
-        self.start_distances = None
-        if inest and config.shaping == "progress":
-            self.start_distances = np.asarray(self.goals.require_start_distances(), dtype=np.float64)
+        self.reward = REWARDS[self.variant](model, self.goals, config)
         self.start_embeddings = None
-        if (inest and config.shaping == "segment") or config.reopens:
+        if self.reward.uses_segments or config.reopens:
             self.start_embeddings = self.goals.require_start_embeddings()
         self.classifier = self.goals.require_stage_classifier() if config.uses_classifier else None
         if self.classifier is not None and self.classifier.num_stages != self.num_subtasks + 1:
@@ -191,9 +279,8 @@ class RewardScorer:
         vector steps: a later round's frames are judged against novelty memories holding the
         earlier rounds' frames, as if scored one call per round, with one search for all.
         `episode_ends[i]`: envs[i] starts a new episode after row i."""
-        return self.advance(
-            subtask_rewards(self.model, embeddings, self.goals), embeddings, states, envs, rounds, episode_ends
-        )
+        per_subtask = self.reward.subtask_rewards(self.model, embeddings, self.goals)
+        return self.advance(per_subtask, embeddings, states, envs, rounds, episode_ends)
 
     def advance(
         self,
@@ -217,40 +304,25 @@ class RewardScorer:
         if len(rounds) != len(envs) or np.any(np.diff(rounds) < 0):
             raise ValueError("rounds must give every frame its round, in ascending order")
         ends = np.zeros(len(envs), bool) if episode_ends is None else np.asarray(episode_ends, dtype=bool)
-        config, inest = self.config, self.variant == "inest"
-        bonus_per_subtask = self.model.shaping.subtask_bonus
+        config = self.config
         # the whole batch's evidence at once; the trackers then take it row by row, in order
-        distances = goal_distances(embeddings, self.goals) if inest and config.shaping != "thesis" else None
         segments = None
         if self.start_embeddings is not None:
             from_start = np.linalg.norm(np.asarray(embeddings)[:, None, :] - self.start_embeddings[None], axis=-1)
-            to_goal = goal_distances(embeddings, self.goals) if distances is None else distances
-            segments = segment_closeness(to_goal, from_start)
-        if inest and config.shaping == "raw":
-            shaped = distance_reward(distances, self.model.shaping)
-        elif inest and config.shaping == "progress":
-            shaped = bonus_per_subtask * closeness(distances, self.start_distances)
-        elif inest and config.shaping == "segment":
-            shaped = bonus_per_subtask * segments
-        else:
-            shaped = per_subtask
+            segments = segment_closeness(goal_distances(embeddings, self.goals), from_start)
         at_least = self.classifier.at_least(embeddings) if self.classifier is not None else None
         true_stage = privileged_stages(states, self.scheme) if config.stage_source == "privileged" else None
         if true_stage is not None and len(true_stage) != len(envs):
             raise ValueError(f"expected one state vector per frame ({len(envs)}), got {len(true_stage)}")
         count = len(envs)
-        distance, bonus = np.zeros(count), np.zeros(count)
-        subtask, completed = np.zeros(count, int), np.zeros(count, int)
-        switched = np.zeros(count, bool)
-        novelty_subtask, since_switch = np.zeros(count, int), np.zeros(count, int)
+        before, subtask, completed, since_switch = (np.zeros(count, int) for _ in range(4))
+        was_done, done, switched = (np.zeros(count, bool) for _ in range(3))
         for row, (env, rewards) in enumerate(zip(envs, per_subtask, strict=True)):
             tracker = self.trackers[env]
-            before = tracker.current
-            novelty_subtask[row] = before  # novelty is judged within the subtask the frame was taken in
+            before[row], was_done[row] = tracker.current, tracker.done
             since_switch[row] = self.steps_since_switch[env]
-            was_done = tracker.done
             if isinstance(tracker, SubtaskTracker):
-                change = int(tracker.update(rewards[before]))
+                change = int(tracker.update(rewards[before[row]]))
             elif isinstance(tracker, ConfirmedTracker):
                 change = tracker.step(rewards, segments[row], at_least[row])
             elif isinstance(tracker, ReopeningTracker):
@@ -260,24 +332,17 @@ class RewardScorer:
             else:
                 change = tracker.step(true_stage[row])
             switched[row] = change > 0
-            if not inest:
-                distance[row] = rewards[-1]
-            elif config.shaping in ("progress", "segment"):  # the stage after this frame: continuous at a switch
-                distance[row] = 0.0 if tracker.done else shaped[row, tracker.current]
-            else:
-                distance[row] = 0.0 if was_done else shaped[row, before]
-            if inest:
-                bonus[row] = tracker.completed * bonus_per_subtask
-            subtask[row], completed[row] = tracker.current, tracker.completed
+            subtask[row], completed[row], done[row] = tracker.current, tracker.completed, tracker.done
             if switched[row]:
                 self.steps_since_switch[env] = 0
             elif self.steps_since_switch[env] >= 0:
                 self.steps_since_switch[env] += 1
             if ends[row]:
                 self.reset(env)
-        if self.variant == "xirl":
-            distance = -self.goals.distance_scale * np.linalg.norm(embeddings - self.goals.goals[-1], axis=1)
-        intrinsic = self.intrinsic_bonus(embeddings, states, novelty_subtask, since_switch, rounds)
+        distance = self.reward.distance(Batch(per_subtask, embeddings, segments, before, was_done, subtask, done))
+        bonus = completed * self.reward.bonus
+        # novelty is judged within the subtask the frame was taken in
+        intrinsic = self.intrinsic_bonus(embeddings, states, before, since_switch, rounds)
         total = distance + bonus + intrinsic
         return RewardParts(total, distance, bonus, intrinsic, subtask, completed, switched, embeddings)
 

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 from inest_sim_node.expert import TASK_ORDER, ScriptedExpert
+from inest_sim_node.files import write_atomic
 from inest_sim_node.subtasks import completed_subtasks
 
 from inest_sim_node import EnvConfig, SweepToTopEnv
@@ -105,8 +106,12 @@ def save_clips(path: str | Path, clips: Sequence[Clip], view: str, source: str) 
         arrays[f"frames_{index}"] = clip.frames
         arrays[f"progress_{index}"] = clip.progress
         arrays[f"held_{index}"] = clip.held
-    with open(path, "wb") as handle:
-        np.savez_compressed(handle, **arrays)
+
+    def write(temporary: Path) -> None:
+        with open(temporary, "wb") as handle:
+            np.savez_compressed(handle, **arrays)
+
+    write_atomic(Path(path), write)  # a killed recording never leaves a truncated clip file
 
 
 def load_clips(path: str | Path, view: str, image_size: int) -> list[Clip]:

@@ -65,7 +65,7 @@ def test_a_policy_s_rollouts_become_clips_the_stage_classifier_is_refitted_on(ti
     )
     pretrain(dataclasses.replace(pretrain_config, calibration=calibration), refit_run, resume=True, progress_bar=False)
     refitted, original = load_model(refit_run / "model"), load_model(reward_run / "model")
-    assert refitted.metadata["calibration"]["clips"] == [str(clips_file)]
+    assert refitted.metadata.calibration["clips"] == [str(clips_file)]
     assert not np.allclose(refitted.goals(3).stage_classifier.out_weight, original.goals(3).stage_classifier.out_weight)
     np.testing.assert_allclose(refitted.goals(3).goals, original.goals(3).goals)  # the encoder is untouched
 

@@ -57,9 +57,23 @@ def test_missing_or_corrupt_model_files_are_reported(tiny_tcc_run, tmp_path):
     (broken / WEIGHTS_FILE).write_bytes(b"not a safetensors file")
     with pytest.raises(ModelError, match="cannot load weights"):
         load_model(broken)
+    document = json.loads((run_dir / "model" / MODEL_FILE).read_text())
+    del document["encoder"]
+    (broken / MODEL_FILE).write_text(json.dumps(document))
+    with pytest.raises(ModelError, match=r"model\.json is not a valid reward model description \(KeyError: 'encoder'"):
+        load_model(broken)
     (broken / MODEL_FILE).write_text("{")
     with pytest.raises(ModelError, match="corrupt"):
         load_model(broken)
+
+
+def test_typed_metadata_writes_back_the_document_it_was_read_from(tiny_tcc_run):
+    _, run_dir = tiny_tcc_run
+    document = json.loads((run_dir / "model" / MODEL_FILE).read_text())
+    metadata = load_model(run_dir / "model").metadata
+    assert metadata.encoder.image_size == 48 and sorted(metadata.subtasks) == [1, 3, 6]
+    written = json.loads(json.dumps(metadata.to_dict()))  # tuples become lists, as in the file
+    assert written == {key: value for key, value in document.items() if not key.startswith("format")}
 
 
 def test_interrupted_run_resumes_where_it_stopped(tiny_tcc_run, tmp_path):
@@ -88,7 +102,7 @@ def test_interrupted_run_resumes_where_it_stopped(tiny_tcc_run, tmp_path):
     history = json.loads(state["history"])
     assert state["iteration"] == 15
     assert [step for step, _ in history["train"]] == list(range(1, 16))
-    assert load_model(run_dir / "model").metadata["training"]["iterations"] == 15
+    assert load_model(run_dir / "model").metadata.training["iterations"] == 15
 
 
 def test_resnet18_models_train_save_and_load(tiny_tcc_run, tmp_path):

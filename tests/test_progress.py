@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import io
 
-from inest_sim_node.progress import track
+from inest_common.progress import track
 
 
 class Terminal(io.StringIO):

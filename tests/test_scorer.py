@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from inest_reward_node.encoders import EncoderConfig
 from inest_reward_node.intrinsic import IntrinsicConfig
-from inest_reward_node.model import ModelError, RewardModel, build_network, load_model
+from inest_reward_node.model import ModelError, ModelMetadata, RewardModel, build_network, load_model
 from inest_reward_node.rewards import THESIS_REWARD, RewardScorer
 from inest_reward_node.shaping import ShapingConfig, distance_reward
 from inest_reward_node.stages import RewardConfig, StageClassifier
@@ -56,7 +56,7 @@ def line_model(hold_steps: int = 2, calibrated: bool = True) -> RewardModel:
         "shaping": shaping.to_dict(),
         "subtasks": {"1": one, "3": three},
     }
-    return RewardModel(build_network("tcc", encoder), metadata)
+    return RewardModel(build_network("tcc", encoder), ModelMetadata.from_dict(metadata))
 
 
 def at(x: float) -> np.ndarray:

@@ -15,9 +15,9 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from inest_common.rosutil import namespaced, ns_stamp, stamp_ns
 from inest_interfaces.msg import Action, EpisodeStatus, Reward, State
 from inest_interfaces.srv import ResetEpisode
-from inest_sim_node.rosutil import namespaced, ns_stamp, stamp_ns
 from inest_sim_node.scoring import NUM_BLOCKS
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node

@@ -18,9 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from inest_common.rosutil import declare_dataclass, run_node
 from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.model import ModelError
-from inest_sim_node.rosutil import declare_dataclass, run_node
 from rclpy.node import Node
 
 from .config import TrainConfig

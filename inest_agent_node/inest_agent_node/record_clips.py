@@ -19,9 +19,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from inest_common.progress import track
 from inest_reward_node.clips import Clip, save_clips
 from inest_reward_node.model import ModelError
-from inest_sim_node.progress import track
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from .config import TrainConfig

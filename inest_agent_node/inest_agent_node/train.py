@@ -19,13 +19,13 @@ from typing import Any
 
 import numpy as np
 import torch
+from inest_common.files import write_atomic
 from inest_reward_node.coverage import measure_coverage, plot_coverage
 from inest_reward_node.intrinsic import INTRINSIC_MODES
 from inest_reward_node.model import ModelError
 from inest_reward_node.runs import merge_settings, prepare_run_dir
 from inest_reward_node.stages import SHAPINGS, STAGE_SOURCES, TRACKERS
 from inest_sim_node.config import ORACLE_REWARDS
-from inest_sim_node.files import write_atomic
 from inest_sim_node.observation import STATE_OBSERVATIONS
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, unwrap_vec_wrapper

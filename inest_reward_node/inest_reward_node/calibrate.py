@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from inest_sim_node.progress import track
+from inest_common.progress import track
 
 from .clips import load_clips, random_play, wrong_order_play
 from .data import Demo
@@ -160,7 +160,7 @@ def calibrate_thresholds(
 
 def calibrate(
     model: RewardModel, demos: list[Demo], config: PretrainConfig, progress_bar: bool = True
-) -> dict[str, SubtaskGoals]:
+) -> dict[int, SubtaskGoals]:
     """Goal embeddings, XIRL scale, thresholds, start distances and embeddings and the stage classifier
     per subtask scheme, from the training demonstrations (and random, wrong-order and clip-file
     play, see CalibrationConfig)."""
@@ -207,5 +207,5 @@ def calibrate(
             [true_stages(clip.progress, clip.held, scheme) for clip in plays + others],
             config.calibration.classifier,
         )
-        result[str(scheme)] = partial
+        result[scheme] = partial
     return result

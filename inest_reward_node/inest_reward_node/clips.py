@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from inest_common.files import write_atomic
 from inest_sim_node.expert import TASK_ORDER, ScriptedExpert
-from inest_sim_node.files import write_atomic
 from inest_sim_node.subtasks import completed_subtasks
 
 from inest_sim_node import EnvConfig, SweepToTopEnv

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from inest_common.progress import track
 from inest_sim_node.dataset import DemoDataset, Episode
-from inest_sim_node.progress import track
 
 from .encoders import resize_frames
 

@@ -8,18 +8,19 @@ progress shaping), the mean embedding where each subtask starts (`start_embeddin
 segment shaping and reopening) and the stage classifier (`stage_classifier`, see stages.py).
 Models calibrated before the last three existed load without them; a reward that needs them
 raises a ModelError naming the fix. Loading checks the caller's expectations (view, size, scheme).
+`ModelMetadata` is model.json (less its format header) read into typed fields.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
-from inest_sim_node.files import read_versioned_json, write_atomic
+from inest_common.files import read_versioned_json, write_atomic
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 from torch import nn
@@ -119,20 +120,62 @@ class SubtaskGoals:
         return self.stage_classifier
 
 
+@dataclass(eq=False)  # holds arrays: compare the to_dict() documents instead
+class ModelMetadata:
+    """What a model was trained and calibrated with. The training records stay as written (absent
+    in hand-built models): `dataset` (path, sha256), `training` (iterations, the pretraining
+    config), `calibration` (the calibration config)."""
+
+    method: str
+    view: str
+    encoder: EncoderConfig
+    shaping: ShapingConfig
+    subtasks: dict[int, SubtaskGoals]  # per subtask scheme
+    holdr: HoldRConfig | None = None
+    dataset: dict[str, Any] = field(default_factory=dict)
+    training: dict[str, Any] = field(default_factory=dict)
+    calibration: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> ModelMetadata:
+        return cls(
+            method=data["method"],
+            view=data["view"],
+            encoder=EncoderConfig(**data["encoder"]),
+            shaping=ShapingConfig(**data["shaping"]),
+            subtasks={int(scheme): SubtaskGoals.from_dict(goals) for scheme, goals in data["subtasks"].items()},
+            holdr=HoldRConfig(**data["holdr"]) if data.get("holdr") else None,
+            dataset=data.get("dataset", {}),
+            training=data.get("training", {}),
+            calibration=data.get("calibration", {}),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The document model.json holds after its format header."""
+        return {
+            "method": self.method,
+            "view": self.view,
+            "encoder": self.encoder.to_dict(),
+            "holdr": None if self.holdr is None else self.holdr.to_dict(),
+            "dataset": self.dataset,
+            "training": self.training,
+            "shaping": self.shaping.to_dict(),
+            "calibration": self.calibration,
+            "subtasks": {str(scheme): goals.to_dict() for scheme, goals in self.subtasks.items()},
+        }
+
+
 class RewardModel:
     """A frozen network plus what it was calibrated with; embeds frames in batches."""
 
-    def __init__(self, network: nn.Module, metadata: dict[str, Any]) -> None:
+    def __init__(self, network: nn.Module, metadata: ModelMetadata) -> None:
         self.network = network.eval()
         # batch norm folded into the convolutions (a copy: a training network passed in stays as it is);
         # about a third off the small CNN's forward pass at the batch sizes the reward runs at
-        self.inference = fuse(network) if metadata["method"] == "tcc" else self.network
+        self.inference = fuse(network) if metadata.method == "tcc" else self.network
         self.metadata = metadata
-        self.method: str = metadata["method"]
-        self.view: str = metadata["view"]
-        self.encoder_config = EncoderConfig(**metadata["encoder"])
-        self.shaping = ShapingConfig(**metadata["shaping"])
-        self.subtasks = {int(scheme): SubtaskGoals.from_dict(goals) for scheme, goals in metadata["subtasks"].items()}
+        self.method, self.view, self.encoder_config = metadata.method, metadata.view, metadata.encoder
+        self.shaping, self.subtasks = metadata.shaping, metadata.subtasks
         self._steps_at_goal: dict[bytes, float] = {}  # HOLD-R's d(g, g), fixed per goal
 
     @property
@@ -173,32 +216,35 @@ class RewardModel:
         return self._steps_at_goal[key]
 
 
-def save_model(folder: str | Path, network: nn.Module, metadata: dict[str, Any]) -> None:
+def save_model(folder: str | Path, network: nn.Module, metadata: ModelMetadata) -> None:
     """Weights first, then the JSON that makes the folder loadable, each by atomic rename."""
     folder = Path(folder)
     tensors = {name: tensor.detach().contiguous().cpu() for name, tensor in network.state_dict().items()}
     write_atomic(folder / WEIGHTS_FILE, lambda path: save_file(tensors, str(path)))
-    document = {"format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION, **metadata}
+    document = {"format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION, **metadata.to_dict()}
     write_atomic(folder / MODEL_FILE, lambda path: path.write_text(json.dumps(document, indent=2) + "\n"))
 
 
-def read_model_metadata(folder: str | Path) -> dict[str, Any]:
-    return read_versioned_json(
-        Path(folder) / MODEL_FILE, MODEL_FORMAT, MODEL_FORMAT_VERSION, "reward model", ModelError
-    )
+def read_model_metadata(folder: str | Path) -> ModelMetadata:
+    path = Path(folder) / MODEL_FILE
+    document = read_versioned_json(path, MODEL_FORMAT, MODEL_FORMAT_VERSION, "reward model", ModelError)
+    try:
+        return ModelMetadata.from_dict(document)
+    except (KeyError, TypeError, ValueError) as error:
+        raise ModelError(f"{path} is not a valid reward model description ({type(error).__name__}: {error})") from error
 
 
 def check_expectations(
-    metadata: dict[str, Any], folder: Path, view: str | None, image_size: int | None, scheme: int | None
+    metadata: ModelMetadata, folder: Path, view: str | None, image_size: int | None, scheme: int | None
 ) -> None:
-    trained = f"{folder} was trained on the {metadata['view']!r} camera at {metadata['encoder']['image_size']} px"
-    if view is not None and view != metadata["view"]:
+    trained = f"{folder} was trained on the {metadata.view!r} camera at {metadata.encoder.image_size} px"
+    if view is not None and view != metadata.view:
         raise ModelError(f"view mismatch: {trained}, but the caller uses the {view!r} camera")
-    if image_size is not None and image_size != metadata["encoder"]["image_size"]:
+    if image_size is not None and image_size != metadata.encoder.image_size:
         raise ModelError(f"input size mismatch: {trained}, but the caller asked for {image_size} px")
-    if scheme is not None and str(scheme) not in metadata["subtasks"]:
+    if scheme is not None and scheme not in metadata.subtasks:
         raise ModelError(
-            f"subtask scheme mismatch: {folder} has goals for {sorted(int(s) for s in metadata['subtasks'])} "
+            f"subtask scheme mismatch: {folder} has goals for {sorted(metadata.subtasks)} "
             f"subtasks, but the caller asked for {scheme}"
         )
 
@@ -210,9 +256,7 @@ def load_model(
     folder = Path(folder)
     metadata = read_model_metadata(folder)
     check_expectations(metadata, folder, view, image_size, scheme)
-    encoder = EncoderConfig(**metadata["encoder"])
-    holdr = HoldRConfig(**metadata["holdr"]) if metadata.get("holdr") else None
-    network = build_network(metadata["method"], encoder, holdr)
+    network = build_network(metadata.method, metadata.encoder, metadata.holdr)
     try:
         state = load_file(str(folder / WEIGHTS_FILE))
         network.load_state_dict(state)

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import rclpy
 import torch
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from inest_common.rosutil import declare_dataclass, namespaced, ns_stamp, run_node, stamp_ns
 from inest_interfaces.msg import Reward
-from inest_sim_node.rosutil import declare_dataclass, namespaced, ns_stamp, run_node, stamp_ns
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile

@@ -25,16 +25,16 @@ from typing import Any
 
 import numpy as np
 import torch
+from inest_common.files import sha256_of, write_atomic
+from inest_common.progress import track
 from inest_sim_node.dataset import METADATA_FILE, DatasetError, read_metadata
-from inest_sim_node.files import sha256_of, write_atomic
-from inest_sim_node.progress import track
 
 from .calibrate import CalibrationConfig, calibrate
 from .clips import load_clips
 from .data import AugmentConfig, Demo, load_demos
 from .encoders import ENCODER_KINDS, EncoderConfig
 from .holdr import HoldRConfig
-from .model import METHODS, RewardModel, SubtaskGoals, build_network, save_model
+from .model import METHODS, ModelMetadata, RewardModel, SubtaskGoals, build_network, save_model
 from .objectives import OBJECTIVES
 from .runs import prepare_run_dir
 from .shaping import ShapingConfig
@@ -94,18 +94,18 @@ def dataset_hash(root: str | Path) -> str:
     return sha256_of(Path(root) / METADATA_FILE)
 
 
-def model_metadata(config: PretrainConfig, iterations_done: int, subtasks: dict[str, SubtaskGoals]) -> dict[str, Any]:
-    return {
-        "method": config.method,
-        "view": config.view,
-        "encoder": config.encoder.to_dict(),
-        "holdr": config.holdr.to_dict() if config.method == "holdr" else None,
-        "dataset": {"path": str(config.dataset), "sha256": dataset_hash(config.dataset)},
-        "training": {"iterations": iterations_done, "config": config.to_dict()},
-        "shaping": config.shaping.to_dict(),
-        "calibration": config.calibration.to_dict(),
-        "subtasks": {scheme: goals.to_dict() for scheme, goals in subtasks.items()},
-    }
+def model_metadata(config: PretrainConfig, iterations_done: int, subtasks: dict[int, SubtaskGoals]) -> ModelMetadata:
+    return ModelMetadata(
+        method=config.method,
+        view=config.view,
+        encoder=config.encoder,
+        shaping=config.shaping,
+        subtasks=subtasks,
+        holdr=config.holdr if config.method == "holdr" else None,
+        dataset={"path": str(config.dataset), "sha256": dataset_hash(config.dataset)},
+        training={"iterations": iterations_done, "config": config.to_dict()},
+        calibration=config.calibration.to_dict(),
+    )
 
 
 def plot_history(history: dict[str, list[list[float]]], path: Path) -> None:
@@ -220,7 +220,8 @@ class Pretrainer:
         subtasks = calibrate(model, train, self.config, progress_bar)
         metadata = model_metadata(self.config, self.iteration, subtasks)
         save_model(self.run_dir / MODEL_DIR, self.network, metadata)
-        return RewardModel(self.network, metadata)
+        # through the written document, so the model returned is exactly the one a later load gives
+        return RewardModel(self.network, ModelMetadata.from_dict(metadata.to_dict()))
 
 
 def pretrain(

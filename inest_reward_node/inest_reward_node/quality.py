@@ -64,9 +64,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from inest_common.progress import track
 from inest_sim_node.dataset import DatasetError
 from inest_sim_node.expert import WRONG_ORDER
-from inest_sim_node.progress import track
 from inest_sim_node.world import BLOCK_COLOURS
 from scipy.stats import spearmanr
 
@@ -538,7 +538,7 @@ def evaluate(
         kind: [model.embed(episode.frames) for episode in episodes] for kind, episodes in negatives.items()
     }
     report: dict[str, Any] = {
-        "model": model.metadata,
+        "model": model.metadata.to_dict(),
         "normalisation": __doc__,
         "scorer_options": json_ready(scorer_options),
         "negatives": describe_negatives(negatives, clip_files),

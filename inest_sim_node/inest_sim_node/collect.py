@@ -24,6 +24,7 @@ import cv2
 import gymnasium
 import numpy as np
 import pymunk
+from inest_common.progress import track
 
 from . import __version__
 from .config import EnvConfig
@@ -39,7 +40,6 @@ from .dataset import (
 )
 from .env import STATE_FIELDS, SweepToTopEnv
 from .expert import ExpertConfig, ScriptedExpert
-from .progress import track
 from .subtasks import DESCRIPTIONS, SCHEMES, subtask_labels
 
 

@@ -8,8 +8,8 @@ Layout of a dataset folder:
 Files are written atomically (temporary name, then rename), so an interrupted collection
 never leaves a half-written episode behind, and every read checks the recorded sha256 so
 a corrupt or truncated file is reported by name instead of feeding garbage to training.
-(The file helpers themselves, which the reward model and the trainer use too, are in files.py;
-they stay importable from here.)
+(The file helpers themselves, which the reward model and the trainer use too, are in
+`inest_common.files`.)
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from inest_common.files import read_versioned_json, sha256_of, write_atomic
 
-from .files import read_versioned_json, sha256_of, write_atomic
 from .subtasks import SCHEMES
 
 METADATA_FILE = "metadata.json"

@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from inest_common.rosutil import declare_dataclass, ns_stamp, run_node, stamp_ns
 from inest_interfaces.msg import Action, EpisodeStatus, State
 from inest_interfaces.srv import ResetEpisode
 from rclpy.node import Node
@@ -28,7 +29,6 @@ from sensor_msgs.msg import Image
 
 from .config import VIEWS, EnvConfig
 from .env import SweepToTopEnv, validate_action
-from .rosutil import declare_dataclass, ns_stamp, run_node, stamp_ns
 
 MODES = ("lockstep", "realtime")
 

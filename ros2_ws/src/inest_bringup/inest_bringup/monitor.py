@@ -16,8 +16,8 @@ from pathlib import Path
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from inest_common.rosutil import namespaced
 from inest_interfaces.msg import EpisodeStatus, Reward
-from inest_sim_node.rosutil import namespaced
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 

@@ -15,6 +15,7 @@ from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.model import load_model
 from inest_reward_node.rewards import RewardScorer
 from inest_sim_node.expert import ScriptedExpert
+from small_training import small_train_config
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from inest_agent_node.config import SacConfig, TrainConfig
@@ -94,16 +95,11 @@ def test_scoring_several_steps_at_once_gives_the_rewards_of_scoring_every_step(t
 
 
 def tiny_config(total_steps: int, observation: str = "stage") -> TrainConfig:
-    return TrainConfig(
+    return small_train_config(
         reward="env",
         observation=observation,
-        intrinsic=IntrinsicConfig(mode="none"),
-        num_envs=2,
         total_steps=total_steps,
-        eval_every=200,
-        eval_episodes=1,
         final_eval_episodes=2,
-        checkpoint_every=200,
         sac=SacConfig(learning_starts=100, buffer_size=5000, batch_size=32, net_arch=(32, 32)),
     )
 
@@ -139,18 +135,12 @@ def test_config_validation_and_yaml(tmp_path):
 
 def test_resumed_inest_run_keeps_its_exploration_memories(tiny_tcc_run, tmp_path):
     _, reward_run = tiny_tcc_run
-    config = TrainConfig(
+    config = small_train_config(
         reward="inest",
         model=str(reward_run / "model"),
-        num_envs=2,
+        intrinsic=IntrinsicConfig(),  # the default bonus: its memories are what a resume must keep
         observation="state",  # the stage observation needs every step's reward at once
         reward_batch_steps=3,  # 100 vector steps: the checkpoint must store a transition still waiting
-        total_steps=200,
-        eval_every=200,
-        eval_episodes=1,
-        final_eval_episodes=1,
-        checkpoint_every=200,
-        sac=SacConfig(learning_starts=50, buffer_size=1000, batch_size=16, net_arch=(16, 16)),
     )
     first = Trainer(config, tmp_path / "run", progress_bar=False)
     first.train()

@@ -11,13 +11,12 @@ import numpy as np
 import pytest
 from inest_agent_node.train import Trainer
 from inest_reward_node.clips import Clip, ClipError, load_clips, save_clips
-from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.model import load_model
 from inest_reward_node.pretrain import main as pretrain_main
 from inest_reward_node.pretrain import pretrain
+from small_training import small_train_config
 
 from inest_agent_node import record_clips
-from inest_agent_node.config import SacConfig, TrainConfig
 
 
 def test_clip_files_round_trip_and_refuse_what_does_not_fit(tmp_path):
@@ -38,18 +37,7 @@ def test_clip_files_round_trip_and_refuse_what_does_not_fit(tmp_path):
 
 def test_a_policy_s_rollouts_become_clips_the_stage_classifier_is_refitted_on(tiny_tcc_run, tmp_path, capsys):
     pretrain_config, reward_run = tiny_tcc_run
-    config = TrainConfig(
-        reward="inest",
-        model=str(reward_run / "model"),
-        intrinsic=IntrinsicConfig(mode="none"),
-        num_envs=2,
-        total_steps=200,
-        eval_every=200,
-        eval_episodes=1,
-        final_eval_episodes=1,
-        checkpoint_every=200,
-        sac=SacConfig(learning_starts=50, buffer_size=1000, batch_size=16, net_arch=(16, 16)),
-    )
+    config = small_train_config(reward="inest", model=str(reward_run / "model"))
     Trainer(config, tmp_path / "policy", progress_bar=False).train()
     clips_file = tmp_path / "clips" / "policy.npz"  # the folder does not exist yet
     assert record_clips.main([str(tmp_path / "policy"), "--episodes", "3", "--out", str(clips_file)]) == 0

@@ -12,8 +12,9 @@ from inest_agent_node.train import Trainer
 from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_sim_node.observation import stage_fields, stage_observation
 from inest_sim_node.scoring import dense_reward
+from small_training import small_train_config
 
-from inest_agent_node.config import SacConfig, TrainConfig
+from inest_agent_node.config import TrainConfig
 from inest_sim_node import STATE_FIELDS, EnvConfig, SweepToTopEnv
 
 
@@ -96,17 +97,14 @@ def test_a_stage_claimed_for_a_block_not_in_the_goal_is_a_false_completion():
 
 def test_learned_reward_training_sees_the_trackers_stage_and_records_diagnostics(tiny_tcc_run, tmp_path):
     _, reward_run = tiny_tcc_run
-    config = TrainConfig(
+    config = small_train_config(
         reward="inest",
         model=str(reward_run / "model"),
         intrinsic=IntrinsicConfig(mode="embedding"),
-        num_envs=2,
         total_steps=400,  # 200 vector steps: each evaluation interval ends a 100-step episode per env
-        eval_every=200,
         eval_episodes=2,
         final_eval_episodes=2,
         checkpoint_every=400,
-        sac=SacConfig(learning_starts=50, buffer_size=1000, batch_size=16, net_arch=(16, 16)),
     )
     trainer = Trainer(config, tmp_path / "run", progress_bar=False)
     assert trainer.model.observation_space.shape == (28,)

@@ -35,8 +35,10 @@ def tiny_demos(tmp_path_factory):
 @pytest.fixture(scope="session")
 def tiny_tcc_run(tiny_demos, tmp_path_factory):
     """A TCC run of a few iterations on the tiny dataset: (config, run folder)."""
+    from inest_reward_node.calibrate import CalibrationConfig
     from inest_reward_node.encoders import EncoderConfig
     from inest_reward_node.pretrain import PretrainConfig, pretrain
+    from inest_reward_node.stage_head import StageHeadConfig
 
     config = PretrainConfig(
         dataset=str(tiny_demos),
@@ -48,6 +50,7 @@ def tiny_tcc_run(tiny_demos, tmp_path_factory):
         validation_batches=1,
         checkpoint_every=10,
         learning_rate=1e-3,
+        calibration=CalibrationConfig(stage_head=StageHeadConfig(iterations=30, batch_size=32)),
     )
     run_dir = tmp_path_factory.mktemp("tcc_run")
     pretrain(config, run_dir, progress_bar=False)

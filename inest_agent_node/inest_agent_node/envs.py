@@ -148,8 +148,8 @@ class LearnedRewardVecEnv(VecEnvWrapper):
             return
         frames = np.concatenate([step.frames for step in self.waiting])
         count, steps = self.num_envs, len(self.waiting)
-        scored = self.scorer.score_embeddings(
-            self.scorer.model.embed(frames),
+        scored = self.scorer.score_frames(
+            frames,
             np.concatenate([step.states for step in self.waiting]),
             envs=np.tile(np.arange(count), steps),
             rounds=np.repeat(np.arange(steps), count),

@@ -24,7 +24,7 @@ from inest_reward_node.coverage import measure_coverage, plot_coverage
 from inest_reward_node.intrinsic import INTRINSIC_MODES
 from inest_reward_node.model import ModelError
 from inest_reward_node.runs import merge_settings, prepare_run_dir
-from inest_reward_node.stages import SHAPINGS, STAGE_SOURCES, TRACKERS
+from inest_reward_node.stages import SHAPINGS, STAGE_EVIDENCE, STAGE_SOURCES, TRACKERS
 from inest_sim_node.config import ORACLE_REWARDS
 from inest_sim_node.observation import STATE_OBSERVATIONS
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
@@ -225,6 +225,9 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     parser.add_argument(
         "--stage-source", choices=STAGE_SOURCES, help="privileged: stage and bonus from the true progress (diagnostic)"
     )
+    parser.add_argument(
+        "--stage-evidence", choices=STAGE_EVIDENCE, help="what the classifier trackers read: embedding or pixels"
+    )
     parser.add_argument("--oracle", choices=ORACLE_REWARDS, help="the simulator's reward, used by --reward env")
     for name in INTEGER_FLAGS:
         parser.add_argument(f"--{name.replace('_', '-')}", type=int)
@@ -234,7 +237,11 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         for name in ("reward", "model", "subtasks", "view", "observation", "oracle", "learner", *INTEGER_FLAGS)
         if getattr(args, name) is not None
     }
-    learned = {name: getattr(args, name) for name in ("shaping", "tracker", "stage_source") if getattr(args, name)}
+    learned = {
+        name: getattr(args, name)
+        for name in ("shaping", "tracker", "stage_source", "stage_evidence")
+        if getattr(args, name)
+    }
     if learned:
         overrides["learned_reward"] = learned
     if args.intrinsic is not None:

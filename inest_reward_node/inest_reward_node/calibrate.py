@@ -1,6 +1,7 @@
 """Calibration of a pretrained encoder: goal embeddings, XIRL distance scale, subtask-completion
-thresholds, per-subtask start distances and embeddings, and the stage classifier (fitted by
-stages.py), from the training demonstrations and random, wrong-order and clip-file play.
+thresholds, per-subtask start distances and embeddings, the stage classifier (fitted by
+stages.py) and the pixel stage head (stage_head.py), from the training demonstrations and
+random, wrong-order and clip-file play.
 
 `calibrate()` computes all of them for every subtask scheme (TCC: 1, 3 and 6 subtasks; HOLD-R: 1);
 the functions above it are its parts.
@@ -19,6 +20,7 @@ from .clips import load_clips, random_play, wrong_order_play
 from .data import Demo
 from .model import RewardModel, SubtaskGoals
 from .rewards import subtask_rewards
+from .stage_head import StageHeadConfig, fit_stage_head
 from .stages import StageClassifierConfig, demo_stages, fit_stage_classifier, true_stages
 
 if TYPE_CHECKING:
@@ -47,7 +49,8 @@ class CalibrationConfig:
     wrong order (inest_sim_node.expert.ScriptedExpert(order=...)), every frame labelled with the
     simulator's true ordered progress, and on the labelled `clips` files (clips.py; e.g. a trained
     policy's own rollouts from inest-record-clips, whose frames the classifier must not mistake
-    for progress). The thresholds use random play only."""
+    for progress). The pixel stage head (stage_head.py) is fitted on the same frames (the first
+    `stage_head.max_demos` demonstrations). The thresholds use random play only."""
 
     percentile: float = 2.0
     random_episodes: int = 50  # 0: demonstrations only
@@ -57,6 +60,7 @@ class CalibrationConfig:
     wrong_order_episodes: int = 20  # for the stage classifier only; 0: none
     clips: tuple[str, ...] = ()  # clip files (clips.save_clips) for the stage classifier only
     classifier: StageClassifierConfig = field(default_factory=StageClassifierConfig)
+    stage_head: StageHeadConfig = field(default_factory=StageHeadConfig)  # the pixel one, same frames
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.percentile <= 100.0:
@@ -207,5 +211,15 @@ def calibrate(
             [true_stages(clip.progress, clip.held, scheme) for clip in plays + others],
             config.calibration.classifier,
         )
+        head = config.calibration.stage_head
+        if head.iterations:
+            labelled = demos[: head.max_demos]
+            partial.stage_head = fit_stage_head(
+                [demo.frames for demo in labelled] + [clip.frames for clip in plays + others],
+                [demo_stages(demo.progress, demo.labels[scheme], scheme) for demo in labelled]
+                + [true_stages(clip.progress, clip.held, scheme) for clip in plays + others],
+                scheme + 1,
+                head,
+            )
         result[scheme] = partial
     return result

@@ -5,8 +5,9 @@ A model folder holds `weights.safetensors` (tensors only, nothing executable) an
 dataset, and per subtask scheme the goal embeddings, XIRL distance scale, completion
 thresholds, the raw distance to each goal where its subtask starts (`start_distances`, for
 progress shaping), the mean embedding where each subtask starts (`start_embeddings`, for
-segment shaping and reopening) and the stage classifier (`stage_classifier`, see stages.py).
-Models calibrated before the last three existed load without them; a reward that needs them
+segment shaping and reopening), the stage classifier (`stage_classifier`, see stages.py) and
+the pixel stage head's shape (`stage_head`, see stage_head.py; its weights in
+`stage_heads.safetensors`). Models calibrated before the last four existed load without them; a reward that needs them
 raises a ModelError naming the fix. Loading checks the caller's expectations (view, size, scheme).
 `ModelMetadata` is model.json (less its format header) read into typed fields.
 """
@@ -29,6 +30,8 @@ from torch.fx.experimental.optimization import fuse
 from .encoders import EncoderConfig, build_encoder, frames_to_tensor, resize_frames
 from .holdr import HoldR, HoldRConfig
 from .shaping import ShapingConfig
+from .stage_head import WEIGHTS_FILE as STAGE_HEADS_FILE
+from .stage_head import StageHead
 from .stages import StageClassifier
 
 MODEL_FORMAT = "inest-reward-model"
@@ -63,6 +66,7 @@ class SubtaskGoals:
     start_distances: list[float] | None = None
     stage_classifier: StageClassifier | None = None  # P(true stage | embedding); None: an older model
     start_embeddings: np.ndarray | None = None  # (subtasks, D) mean embedding where each subtask starts
+    stage_head: StageHead | None = None  # P(true stage | frame) from pixels; None: an older model
 
     def to_dict(self) -> dict[str, Any]:
         data: dict[str, Any] = {
@@ -76,6 +80,8 @@ class SubtaskGoals:
             data["start_embeddings"] = np.asarray(self.start_embeddings).tolist()
         if self.stage_classifier is not None:
             data["stage_classifier"] = self.stage_classifier.to_dict()
+        if self.stage_head is not None:
+            data["stage_head"] = self.stage_head.to_dict()
         return data
 
     @classmethod
@@ -86,6 +92,7 @@ class SubtaskGoals:
             starts = [1.0 / float(data["distance_scale"])]
         classifier = data.get("stage_classifier")
         start_embeddings = data.get("start_embeddings")
+        head = data.get("stage_head")
         return cls(
             goals,
             list(data["thresholds"]),
@@ -93,6 +100,7 @@ class SubtaskGoals:
             None if starts is None else [float(value) for value in starts],
             None if classifier is None else StageClassifier.from_dict(classifier),
             None if start_embeddings is None else np.asarray(start_embeddings, dtype=np.float32),
+            None if head is None else StageHead.from_dict(head),  # untrained until load_model fills it
         )
 
     def require_start_distances(self) -> list[float]:
@@ -118,6 +126,14 @@ class SubtaskGoals:
                 f"(calibrated before the classifier tracker existed); {RECALIBRATE_HINT}"
             )
         return self.stage_classifier
+
+    def require_stage_head(self) -> StageHead:
+        if self.stage_head is None:
+            raise ModelError(
+                f"this model has no pixel stage head for its {len(self.goals)}-subtask goals "
+                f"(calibrated before the pixel stage head existed); {RECALIBRATE_HINT}"
+            )
+        return self.stage_head
 
 
 @dataclass(eq=False)  # holds arrays: compare the to_dict() documents instead
@@ -221,6 +237,14 @@ def save_model(folder: str | Path, network: nn.Module, metadata: ModelMetadata) 
     folder = Path(folder)
     tensors = {name: tensor.detach().contiguous().cpu() for name, tensor in network.state_dict().items()}
     write_atomic(folder / WEIGHTS_FILE, lambda path: save_file(tensors, str(path)))
+    heads = {
+        f"{scheme}.{name}": tensor.detach().contiguous().cpu()
+        for scheme, goals in metadata.subtasks.items()
+        if goals.stage_head is not None
+        for name, tensor in goals.stage_head.network.state_dict().items()
+    }
+    if heads:
+        write_atomic(folder / STAGE_HEADS_FILE, lambda path: save_file(heads, str(path)))
     document = {"format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION, **metadata.to_dict()}
     write_atomic(folder / MODEL_FILE, lambda path: path.write_text(json.dumps(document, indent=2) + "\n"))
 
@@ -258,8 +282,18 @@ def load_model(
     check_expectations(metadata, folder, view, image_size, scheme)
     network = build_network(metadata.method, metadata.encoder, metadata.holdr)
     try:
-        state = load_file(str(folder / WEIGHTS_FILE))
-        network.load_state_dict(state)
+        network.load_state_dict(load_file(str(folder / WEIGHTS_FILE)))
     except (FileNotFoundError, SafetensorError, RuntimeError) as error:
         raise ModelError(f"cannot load weights from {folder / WEIGHTS_FILE}: {error}") from error
+    heads = {scheme: goals.stage_head for scheme, goals in metadata.subtasks.items() if goals.stage_head is not None}
+    if heads:
+        try:
+            tensors = load_file(str(folder / STAGE_HEADS_FILE))
+            for scheme, head in heads.items():
+                prefix = f"{scheme}."
+                head.network.load_state_dict(
+                    {name[len(prefix) :]: tensor for name, tensor in tensors.items() if name.startswith(prefix)}
+                )
+        except (FileNotFoundError, SafetensorError, RuntimeError) as error:
+            raise ModelError(f"cannot load the stage heads from {folder / STAGE_HEADS_FILE}: {error}") from error
     return RewardModel(network, metadata)

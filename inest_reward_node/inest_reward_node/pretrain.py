@@ -34,7 +34,7 @@ from .clips import load_clips
 from .data import AugmentConfig, Demo, load_demos
 from .encoders import ENCODER_KINDS, EncoderConfig
 from .holdr import HoldRConfig
-from .model import METHODS, ModelMetadata, RewardModel, SubtaskGoals, build_network, save_model
+from .model import METHODS, ModelMetadata, RewardModel, SubtaskGoals, build_network, load_model, save_model
 from .objectives import OBJECTIVES
 from .runs import prepare_run_dir
 from .shaping import ShapingConfig
@@ -220,8 +220,7 @@ class Pretrainer:
         subtasks = calibrate(model, train, self.config, progress_bar)
         metadata = model_metadata(self.config, self.iteration, subtasks)
         save_model(self.run_dir / MODEL_DIR, self.network, metadata)
-        # through the written document, so the model returned is exactly the one a later load gives
-        return RewardModel(self.network, ModelMetadata.from_dict(metadata.to_dict()))
+        return load_model(self.run_dir / MODEL_DIR)  # exactly the model a later load gives
 
 
 def pretrain(
@@ -290,6 +289,12 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         metavar="FILE",
         help="labelled clip files (inest-record-clips) the stage classifier is also fitted on",
     )
+    parser.add_argument(
+        "--stage-head-iterations",
+        type=int,
+        default=defaults.calibration.stage_head.iterations,
+        help="training iterations of the pixel stage head (stage_head.py); 0: none",
+    )
     parser.add_argument("--no-augment", action="store_true")
     args = parser.parse_args(argv)
     config = dataclasses.replace(
@@ -311,6 +316,7 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
             demo_pass_rate=args.demo_pass_rate,
             wrong_order_episodes=args.wrong_order_episodes,
             clips=tuple(args.clips),
+            stage_head=dataclasses.replace(defaults.calibration.stage_head, iterations=args.stage_head_iterations),
         ),
         **{name: getattr(args, name) for name in INTEGER_OPTIONS},
     )

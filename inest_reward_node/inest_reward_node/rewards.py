@@ -226,10 +226,15 @@ class RewardScorer:
         self.start_embeddings = None
         if self.reward.uses_segments or config.reopens:
             self.start_embeddings = self.goals.require_start_embeddings()
-        self.classifier = self.goals.require_stage_classifier() if config.uses_classifier else None
-        if self.classifier is not None and self.classifier.num_stages != self.num_subtasks + 1:
+        self.classifier = self.stage_head = None
+        if config.uses_classifier and config.stage_evidence == "pixels":
+            self.stage_head = self.goals.require_stage_head()
+        elif config.uses_classifier:
+            self.classifier = self.goals.require_stage_classifier()
+        stage_model = self.classifier or self.stage_head
+        if stage_model is not None and stage_model.num_stages != self.num_subtasks + 1:
             raise ModelError(
-                f"the stage classifier predicts {self.classifier.num_stages} stages, "
+                f"the stage classifier predicts {stage_model.num_stages} stages, "
                 f"not the {self.num_subtasks + 1} of {scheme} subtasks"
             )
         self.trackers: list[SubtaskTracker | StageTracker] = [self.new_tracker() for _ in range(num_envs)]
@@ -264,7 +269,24 @@ class RewardScorer:
 
     def score(self, frames: np.ndarray, states: np.ndarray | None = None) -> RewardParts:
         """frames: (N, H, W, 3) uint8, one per environment, in environment order."""
-        return self.score_embeddings(self.model.embed(frames), states)
+        return self.score_frames(frames, states)
+
+    def score_frames(
+        self,
+        frames: np.ndarray,
+        states: np.ndarray | None = None,
+        envs: np.ndarray | None = None,
+        rounds: np.ndarray | None = None,
+        episode_ends: np.ndarray | None = None,
+    ) -> RewardParts:
+        """`score_embeddings` of the frames' embeddings, with the pixel stage head's evidence when
+        the tracker reads it (RewardConfig.stage_evidence)."""
+        evidence = self.stage_evidence(frames)
+        return self.score_embeddings(self.model.embed(frames), states, envs, rounds, episode_ends, evidence)
+
+    def stage_evidence(self, frames: np.ndarray) -> np.ndarray | None:
+        """(N, K + 1) P(stage >= j) of each frame from the pixel stage head; None when not used."""
+        return None if self.stage_head is None else self.stage_head.at_least(frames)
 
     def score_embeddings(
         self,
@@ -273,14 +295,16 @@ class RewardScorer:
         envs: np.ndarray | None = None,
         rounds: np.ndarray | None = None,
         episode_ends: np.ndarray | None = None,
+        stage_evidence: np.ndarray | None = None,
     ) -> RewardParts:
         """Without `envs`, one embedding per environment in order. With it, row i belongs to
         environment envs[i] and is taken in order. `rounds` (ascending) groups the rows into
         vector steps: a later round's frames are judged against novelty memories holding the
         earlier rounds' frames, as if scored one call per round, with one search for all.
-        `episode_ends[i]`: envs[i] starts a new episode after row i."""
+        `episode_ends[i]`: envs[i] starts a new episode after row i. `stage_evidence`: the
+        frames' `stage_evidence`, which a tracker reading the pixel stage head needs."""
         per_subtask = self.reward.subtask_rewards(self.model, embeddings, self.goals)
-        return self.advance(per_subtask, embeddings, states, envs, rounds, episode_ends)
+        return self.advance(per_subtask, embeddings, states, envs, rounds, episode_ends, stage_evidence)
 
     def advance(
         self,
@@ -290,6 +314,7 @@ class RewardScorer:
         envs: np.ndarray | None = None,
         rounds: np.ndarray | None = None,
         episode_ends: np.ndarray | None = None,
+        stage_evidence: np.ndarray | None = None,
     ) -> RewardParts:
         """Move the frames' trackers on, given each frame's reward against every subtask goal
         (subtask_rewards: what the threshold tests and the thesis shaping use)."""
@@ -311,6 +336,10 @@ class RewardScorer:
             from_start = np.linalg.norm(np.asarray(embeddings)[:, None, :] - self.start_embeddings[None], axis=-1)
             segments = segment_closeness(goal_distances(embeddings, self.goals), from_start)
         at_least = self.classifier.at_least(embeddings) if self.classifier is not None else None
+        if self.stage_head is not None:
+            if stage_evidence is None or len(stage_evidence) != len(envs):
+                raise ValueError("the pixel stage head's tracker needs every frame's stage_evidence (score_frames)")
+            at_least = stage_evidence
         true_stage = privileged_stages(states, self.scheme) if config.stage_source == "privileged" else None
         if true_stage is not None and len(true_stage) != len(envs):
             raise ValueError(f"expected one state vector per frame ({len(envs)}), got {len(true_stage)}")

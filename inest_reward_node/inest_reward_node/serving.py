@@ -122,9 +122,10 @@ class StreamScorer:
         if not waiting:
             return results
         waiting.sort(key=lambda item: item[0])  # stable: round by round, streams in order within one
-        embeddings = self.scorer.model.embed(np.stack([item[3] for item in waiting]))
-        parts = self.scorer.score_embeddings(
-            embeddings, envs=np.array([item[1] for item in waiting]), rounds=np.array([item[0] for item in waiting])
+        parts = self.scorer.score_frames(
+            np.stack([item[3] for item in waiting]),
+            envs=np.array([item[1] for item in waiting]),
+            rounds=np.array([item[0] for item in waiting]),
         )
         now = time.perf_counter()
         for index, (_, stream, stamp, _, arrived, frame_id) in enumerate(waiting):

@@ -42,6 +42,7 @@ from .shaping import StageTracker
 SHAPINGS = ("thesis", "raw", "progress", "segment")
 TRACKERS = ("threshold", "reopening", "classifier", "confirmed")
 STAGE_SOURCES = ("tracker", "privileged")
+STAGE_EVIDENCE = ("embedding", "pixels")
 PROGRESS_FIELD = STATE_FIELDS.index("ordered_progress")  # k / 3 in the state vector
 REOPEN_BELOW = 0.5  # segment closeness of the reopened subtask: the frame looks like its first half
 
@@ -78,6 +79,9 @@ class RewardConfig:
       simulator's true ordered progress, passed in per frame as the state vector; 1 or 3 subtasks).
     hold_steps: frames a tracker's test must hold to move the stage; 0: the model's
       (ShapingConfig.hold_steps, what its thresholds were calibrated for).
+    stage_evidence: where the classifier and confirmed trackers read P(stage >= j) from:
+      "embedding" (the stage classifier on the frame's embedding) or "pixels" (the pixel stage
+      head on the frame itself, stage_head.py; the embedding does not keep "block in the strip").
     stage_confidence: the classifier says "stage >= j" when it gives P(stage >= j) >= this.
     confirm_window: frames after the threshold test has held within which the classifier must agree.
     intrinsic_cap: the weighted novelty bonus (after the post-switch boost) is clipped to at most
@@ -87,13 +91,19 @@ class RewardConfig:
     shaping: str = "segment"
     tracker: str = "confirmed"
     stage_source: str = "tracker"
+    stage_evidence: str = "embedding"
     hold_steps: int = 0
     stage_confidence: float = 0.5
     confirm_window: int = 20
     intrinsic_cap: float | None = None
 
     def __post_init__(self) -> None:
-        for name, allowed in (("shaping", SHAPINGS), ("tracker", TRACKERS), ("stage_source", STAGE_SOURCES)):
+        for name, allowed in (
+            ("shaping", SHAPINGS),
+            ("tracker", TRACKERS),
+            ("stage_source", STAGE_SOURCES),
+            ("stage_evidence", STAGE_EVIDENCE),
+        ):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"unknown reward {name} {getattr(self, name)!r}; expected one of {allowed}")
         if self.hold_steps < 0:

@@ -18,6 +18,8 @@ from inest_reward_node.data import load_demos
 from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.model import load_model
 from inest_reward_node.rewards import RewardScorer, replay
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 from rosgraph import BIN, Processes, fresh_domain
 from rosgraph_msgs.msg import Clock
 
@@ -151,6 +153,7 @@ def test_the_agent_waits_for_a_restarted_reward_node_and_finishes(graph, tiny_mo
 def test_the_launcher_runs_the_whole_graph_and_writes_the_reward_trace(tiny_model, tmp_path):
     launched = subprocess.run(
         [BIN / "inest-launch", "--out", tmp_path / "graph", "--model", tiny_model, "--steps", "200",
+         "--record", tmp_path / "graph.mcap",
          "--domain-id", str(fresh_domain()), "--interval", "1", "--param", "sim:image_size:=48",
          *[arg for value in TINY_AGENT[1::2] for arg in ("--param", f"agent:{value}")]],
         capture_output=True, text=True, timeout=240,
@@ -159,8 +162,17 @@ def test_the_launcher_runs_the_whole_graph_and_writes_the_reward_trace(tiny_mode
     assert "steps/s" in launched.stdout and "subtask" in launched.stdout
     assert "mean score" in launched.stdout  # the final evaluation table
     assert (tmp_path / "graph" / "reward_trace.png").stat().st_size > 1000
-    for name in ("sim0", "reward", "agent"):
+    for name in ("sim0", "reward", "agent", "record"):
         assert (tmp_path / "graph" / "logs" / f"{name}.log").exists()
+    # the recording, stopped with the graph, is complete: every step's reward, on both reward topics
+    recorded = {"/sim0/reward": [], "/sim0/reward/total": []}
+    with open(tmp_path / "graph.mcap", "rb") as file:
+        reader = make_reader(file, decoder_factories=[DecoderFactory()])
+        for _, channel, _, decoded in reader.iter_decoded_messages(list(recorded), log_time_order=False):
+            recorded[channel.topic].append(decoded)
+    rewards = recorded["/sim0/reward"]
+    assert len(rewards) >= 200 and {r.num_subtasks for r in rewards} == {3} and max(r.subtask for r in rewards) <= 3
+    assert [r.total for r in rewards] == [total.data for total in recorded["/sim0/reward/total"]]
 
 
 def test_a_realtime_simulator_steps_at_8_hz_holding_the_last_action(graph):

@@ -64,6 +64,7 @@ ROSDEP_KEYS = {
     "sb3_contrib": "python3-sb3-contrib-pip",
     "sbx": "python3-sbx-rl-pip",
     "jax": "python3-jax-pip",
+    "mcap": "python3-mcap-pip",
 }
 # imports no import statement shows: by name (learners.LEARNERS) or through another library
 INDIRECT_IMPORTS = {

@@ -27,6 +27,7 @@ setup(
         "console_scripts": [
             "inest-launch = inest_bringup.launcher:main",
             "inest-monitor = inest_bringup.monitor:main",
+            "inest-record = inest_bringup.recorder:main",
         ],
     },
 )

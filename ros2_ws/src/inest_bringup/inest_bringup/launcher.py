@@ -5,7 +5,8 @@ All nodes read one params file (config/inest.params.yaml by default). Discovery 
 machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless `--discovery subnet`, and uses the
 fast-discovery Fast DDS profile shipped next to the params file. The run folder gets each
 node's output in logs/, ROS's own logs in logs/ros/, the agent's run in agent/ and, at the end,
-reward_trace.png. Ctrl-C (or the agent finishing) stops every child: the agent first.
+reward_trace.png; `--record FILE` adds the recorder (inest-record) to the graph. Ctrl-C (or the
+agent finishing) stops every child: the agent first.
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ from pathlib import Path
 
 from inest_agent_node.evaluate import EvalResult, format_table
 from inest_agent_node.train import RESULTS_FILE
+
+from .recording import RecordingError, check_target
 
 CONFIG_DIR_NAME = "config"
 PARAMS_FILE = "inest.params.yaml"
@@ -95,6 +98,9 @@ def node_commands(args: argparse.Namespace, run_dir: Path) -> list[tuple[str, li
         if args.resume:
             agent += ["-p", "resume:=true"]
         commands.append(("agent", [executable("inest-agent-node"), *params, *agent, *extra["agent"]]))
+    if args.record:  # first, so it is subscribed before the first step; a module of this package, always here
+        record = [sys.executable, "-m", "inest_bringup.recorder", str(args.record), "--namespaces", *namespaces]
+        commands.insert(0, ("record", record))
     return commands
 
 
@@ -133,11 +139,17 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--discovery", choices=("localhost", "subnet"), default="localhost")
     parser.add_argument("--param", action="append", default=[], metavar="NODE:NAME:=VALUE", help="sim|reward|agent")
     parser.add_argument("--interval", type=float, default=2.0, help="seconds between progress lines")
+    parser.add_argument("--record", type=Path, metavar="FILE", help="record the reward topics to this MCAP file")
     args = parser.parse_args(argv)
     if args.sims < 1:
         parser.error("--sims must be at least 1")
     if not args.params.is_file():
         parser.error(f"no params file at {args.params}")
+    if args.record:
+        try:
+            check_target(args.record, overwrite=False)
+        except RecordingError as error:
+            parser.error(str(error))
     return args
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 import torch
@@ -43,6 +44,15 @@ def test_resize_frames_to_the_encoder_input():
     assert resize_frames(frames, 48).shape == (2, 48, 48, 3)
     with pytest.raises(ValueError, match=r"\(N, H, W, 3\)"):
         resize_frames(np.zeros((64, 64, 3), np.uint8), 48)
+
+
+def test_square_frames_resize_exactly_as_before_the_crop_policy():
+    """Training reads the simulator's square frames through resize_frames: cropping must not change a bit."""
+    frames = np.random.default_rng(2).integers(0, 256, (3, 128, 128, 3), dtype=np.uint8)
+    for size, interpolation in ((96, cv2.INTER_AREA), (160, cv2.INTER_LINEAR)):
+        expected = np.stack([cv2.resize(frame, (size, size), interpolation=interpolation) for frame in frames])
+        np.testing.assert_array_equal(resize_frames(frames, size), expected)
+    assert resize_frames(frames, 128) is frames
 
 
 def test_small_cnn_widths_set_its_convolutions():

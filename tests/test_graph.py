@@ -199,3 +199,20 @@ def test_a_realtime_simulator_steps_at_8_hz_holding_the_last_action(graph):
     status_times = {(status.header.stamp.sec, status.header.stamp.nanosec) for status in statuses}
     clock_times = [(clock.clock.sec, clock.clock.nanosec) for clock in clocks]
     assert len(clock_times) >= len(statuses) - 2 and set(clock_times[2:]) <= status_times  # /clock = simulated time
+
+
+def test_a_malformed_burst_leaves_no_valid_frame_unanswered_or_uncounted(tiny_model):
+    """benchmarks/reward_node_flood.py, short: a 30 Hz camera beside a 1 kHz burst of malformed frames."""
+    flood = subprocess.run(
+        [sys.executable, Path(__file__).parent.parent / "benchmarks" / "reward_node_flood.py", tiny_model,
+         "--seconds", "2"],
+        capture_output=True, text=True, timeout=240,
+    )  # fmt: skip
+    assert flood.returncode == 0, flood.stdout + flood.stderr
+    report = json.loads(flood.stdout)
+    for name in ("flood_96", "camera_640x480", "flood_640x480"):
+        phase = report[name]
+        assert phase["valid_sent"] >= 30 and phase["answered"] == phase["valid_sent"], (name, phase)
+        assert phase["uncounted"] == 0 and phase["malformed_rejected"] == phase["malformed_sent"], (name, phase)
+    assert report["flood_96"]["malformed_sent"] >= 1000  # six kinds of malformed frames, each rejected
+    assert report["node_log_lines_about_rejections"] <= 30  # each reason once, then counted per 5 s

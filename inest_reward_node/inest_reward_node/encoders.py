@@ -10,10 +10,11 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
-import cv2
 import numpy as np
 import torch
 from torch import nn
+
+from .images import fit_square
 
 ENCODER_KINDS = ("small_cnn", "resnet18")
 
@@ -134,14 +135,14 @@ def build_encoder(config: EncoderConfig) -> nn.Module:
     return model
 
 
-def resize_frames(frames: np.ndarray, size: int) -> np.ndarray:
-    """(N, H, W, 3) uint8 -> (N, size, size, 3); area interpolation when shrinking."""
+def resize_frames(frames: np.ndarray, size: int, resize: str = "crop") -> np.ndarray:
+    """(N, H, W, 3) uint8 -> (N, size, size, 3) by `images.fit_square`: non-square frames are
+    centre-cropped to the training camera's square (`resize="squash"` keeps all of them)."""
     if frames.ndim != 4 or frames.shape[-1] != 3:
         raise ValueError(f"expected frames shaped (N, H, W, 3), got {frames.shape}")
     if frames.shape[1:3] == (size, size):
         return frames
-    interpolation = cv2.INTER_AREA if frames.shape[1] > size else cv2.INTER_LINEAR
-    return np.stack([cv2.resize(frame, (size, size), interpolation=interpolation) for frame in frames])
+    return np.stack([fit_square(frame, size, resize) for frame in frames])
 
 
 def frames_to_tensor(frames: np.ndarray | torch.Tensor, channels_last: bool = True) -> torch.Tensor:

@@ -1,11 +1,14 @@
 """`inest-reward-node`: the learned reward served over ROS 2 (a thin adapter over serving.py).
 
-Subscribes to `<stream>/<image_topic>` (sensor_msgs/Image: rgb8, bgr8, rgba8, bgra8, any size)
-for every stream in `streams`; publishes `<stream>/reward` (inest_interfaces/Reward with the
-image's header), `<stream>/reward/total` (std_msgs/Float32) and `<stream>/reward/subtask`
-(std_msgs/Int32) for plotting tools; serves `<stream>/reset_reward` (std_srvs/Trigger: new
-episode, tracker reset, exploration memories kept); publishes /diagnostics every second.
-Frames that arrive together are scored in one encoder forward pass.
+Subscribes to `<stream>/<image_topic>` (sensor_msgs/Image: rgb8, bgr8, rgba8, bgra8, sides within
+`min_image_size`..`max_image_size`) for every stream in `streams`; publishes `<stream>/reward`
+(inest_interfaces/Reward with the image's header), `<stream>/reward/total` (std_msgs/Float32) and
+`<stream>/reward/subtask` (std_msgs/Int32) for plotting tools; serves `<stream>/reset_reward`
+(std_srvs/Trigger: new episode, tracker reset, exploration memories kept); publishes /diagnostics
+every second.
+Frames that arrive together are scored in one encoder forward pass. Malformed frames are refused
+from their header fields alone, in constant time, so a flood of them cannot delay valid ones;
+the stamp policy is serving.py's.
 
 Parameters: the RewardNodeConfig fields, `intrinsic.*` (IntrinsicConfig) and `reward.*`
 (stages.RewardConfig: shaping, tracker, stage_source, hold_steps, stage_confidence,
@@ -32,11 +35,11 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Float32, Int32
 from std_srvs.srv import Trigger
 
-from .images import ImageRejected, decode_image
+from .images import RESIZE_MODES, ImageRejected, decode_image
 from .intrinsic import IntrinsicConfig
 from .model import ModelError, load_model
 from .rewards import RewardScorer
-from .serving import ScoredFrame, StreamScorer
+from .serving import ScoredFrame, StreamScorer, ThrottledLog
 from .stages import RewardConfig
 
 
@@ -49,8 +52,22 @@ class RewardNodeConfig:
     image_topic: str = "camera/ego/image_raw"
     max_batch: int = 32  # frames per forward pass at most
     max_pending: int = 4  # per stream; older unscored frames are dropped (and counted)
+    queue_depth: int = 1000  # per stream, the subscription's: DDS drops beyond it silently, so it holds a burst
+    min_image_size: int = 32  # pixels, the shorter side at least: smaller frames are rejected
+    max_image_size: int = 4096  # pixels, the longer side at most
+    resize: str = "crop"  # crop: the centred square (the training camera's aspect), then resized | squash
+    backward_stamps: str = "reset"  # a stamp older than the stream's newest: reset (a new episode) | reject
+    log_period: float = 5.0  # seconds: a repeated rejection or backward stamp is logged once per period, counted
     diagnostics_period: float = 1.0  # seconds
     threads: int = 1  # torch threads: one keeps batch-1 latency steady when the simulator and agent share the cores
+
+    def __post_init__(self) -> None:
+        if self.resize not in RESIZE_MODES:
+            raise ValueError(f"resize must be one of {RESIZE_MODES}, got {self.resize!r}")
+        if not 1 <= self.min_image_size <= self.max_image_size:
+            raise ValueError(
+                f"need 1 <= min_image_size <= max_image_size, got {self.min_image_size} and {self.max_image_size}"
+            )
 
 
 def declare_reward_config(node: Node, prefix: str = "reward.") -> RewardConfig:
@@ -82,15 +99,16 @@ class RewardNode(Node):
         scorer = RewardScorer(
             model, config.subtasks, config.variant or None, intrinsic, len(config.streams), config=reward
         )
-        self.streams = StreamScorer(scorer, config.max_pending)
+        self.log = ThrottledLog(config.log_period)
+        self.streams = StreamScorer(scorer, config.max_pending, config.backward_stamps, config.resize, self.log)
         qos = QoSProfile(depth=10)
         self.reward_pubs, self.total_pubs, self.subtask_pubs = [], [], []
         for index, namespace in enumerate(config.streams):
-            self.create_subscription(  # DDS keeps only the newest max_pending frames: a flood costs no decoding
+            self.create_subscription(
                 Image,
                 namespaced(namespace, config.image_topic),
                 lambda msg, i=index: self.on_image(i, msg),
-                QoSProfile(depth=config.max_pending),
+                QoSProfile(depth=config.queue_depth),
             )
             self.reward_pubs.append(self.create_publisher(Reward, namespaced(namespace, "reward"), qos))
             self.total_pubs.append(self.create_publisher(Float32, namespaced(namespace, "reward/total"), qos))
@@ -108,18 +126,33 @@ class RewardNode(Node):
 
     def on_image(self, stream: int, msg: Image) -> None:
         received = time.perf_counter()
+        config, size = self.config, self.streams.scorer.model.image_size
         try:
-            frame = decode_image(msg.encoding, msg.height, msg.width, msg.step, msg.data)
+            frame = decode_image(
+                msg.encoding, msg.height, msg.width, msg.step, msg.data,
+                size, config.resize, config.min_image_size, config.max_image_size,
+            )  # fmt: skip
         except ImageRejected as error:
-            new_reason = str(error) != self.streams.stats.last_rejection
-            self.streams.reject(str(error))
-            message = f"rejected a frame on stream {stream}: {error}"
-            if new_reason:  # every new reason is logged; a flood of the same one once a second
-                self.get_logger().warning(message)
+            self.streams.reject(error.kind, f"stream {stream}: {error}")
+        else:
+            if msg.height != msg.width:
+                self.log.once(
+                    f"aspect:{msg.width}x{msg.height}",
+                    f"{msg.width}x{msg.height} frames: "
+                    + ("centre-cropped to the training camera's square" if config.resize == "crop" else "squashed")
+                    + f", then resized to {size}x{size} (resize:={config.resize})",
+                    "info",
+                )
+            self.publish(self.streams.submit(stream, stamp_ns(msg.header.stamp), frame, received, msg.header.frame_id))
+        self.write_log()
+
+    def write_log(self) -> None:
+        logger = self.get_logger()
+        for level, line in self.log.take():  # one call site per severity: rclpy refuses a change
+            if level == "info":
+                logger.info(line)
             else:
-                self.get_logger().warning(message, throttle_duration_sec=1.0)
-            return
-        self.streams.submit(stream, stamp_ns(msg.header.stamp), frame, received, msg.header.frame_id)
+                logger.warning(line)
 
     def on_reset(self, stream: int, response: Trigger.Response) -> Trigger.Response:
         self.publish(self.streams.flush())  # frames of the old episode belong to it
@@ -141,11 +174,21 @@ class RewardNode(Node):
             self.subtask_pubs[frame.stream].publish(Int32(data=frame.subtask))
 
     def publish_diagnostics(self) -> None:
+        self.write_log()  # the counts of floods that have stopped
         summary = self.streams.take_stats()
         status = DiagnosticStatus(name="inest_reward_node: scoring", hardware_id=self.get_fully_qualified_name())
-        problems = summary["rejected"] or summary["dropped"]
+        problems = [
+            f"{summary[key]} {what}"
+            for key, what in (
+                ("rejected", "rejected"), ("dropped", "dropped"), ("zero_stamps", "zero stamps"),
+                ("repeated_stamps", "repeated stamps"), ("stamp_resets", "backward stamps"),
+            )
+            if summary[key]
+        ]  # fmt: skip
+        if summary["rejected"]:
+            problems.append(f"last rejection: {summary['last_rejection']}")
         status.level = DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
-        status.message = summary["last_rejection"] or ("frames dropped" if summary["dropped"] else "ok")
+        status.message = "; ".join(problems) or "ok"
         status.values = [
             KeyValue(key=key, value=f"{value:.3f}" if isinstance(value, float) else str(value))
             for key, value in summary.items()

@@ -1,23 +1,32 @@
 """Serving the learned reward to live camera streams, without ROS: the reward node's logic.
 
 Frames arrive one at a time from one or more streams (a simulator or camera each); whatever
-has arrived when the node gets to it is scored in one encoder forward pass. Frames are keyed
-by their stamp: a stream's frames must come in stamp order; a repeat of the last scored
-stamp (a simulator re-publishing after a restart of this node or of the agent) gets the
-cached reward again instead of moving the tracker twice; an older stamp is rejected as stale.
+has arrived when the node gets to it is scored in one encoder forward pass.
+
+Stamps. A stream's frames are keyed by their stamp and expected in stamp order:
+- a repeat of the newest stamp with the same pixels is a re-publish (a lockstep simulator
+  answering a re-sent action): it gets the cached reward instead of moving the tracker twice;
+- a zero stamp (a camera that leaves it unset), or a repeated stamp with new pixels, is a new
+  frame and scored as one; the stream is warned about once;
+- an older stamp (a clock that jumped back, a restarted camera or bag) follows `backward`:
+  `reset` starts a new episode on that stream (tracker reset, like `reset_reward`), `reject`
+  drops the frame as stale until the clock passes the newest stamp; either is counted and logged.
+Every frame that gets no reward of its own is counted by reason in `ServingStats`.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import time
-from collections import deque
-from dataclasses import dataclass, field
+from collections import Counter, deque
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .encoders import resize_frames
+from .images import fit_square
 from .rewards import RewardScorer
+
+BACKWARD_POLICIES = ("reset", "reject")
 
 
 @dataclass
@@ -36,13 +45,25 @@ class ScoredFrame:
 
 
 @dataclass
+class Pending:
+    stamp: int
+    frame: np.ndarray  # already fitted to the encoder input
+    received: float
+    frame_id: str
+    republished: bool  # same stamp and pixels as the stream's previous frame: answered from the cache
+
+
+@dataclass
 class ServingStats:
     """Counters and latencies since the last report (diagnostics)."""
 
     scored: int = 0
     repeated: int = 0
-    rejected: int = 0
-    dropped: int = 0
+    rejected: Counter[str] = field(default_factory=Counter)  # reason -> frames refused (malformed, stale)
+    dropped: Counter[str] = field(default_factory=Counter)  # reason -> valid frames never scored
+    zero_stamps: int = 0  # frames stamped 0, scored as new ones
+    repeated_stamps: int = 0  # a stamp again with new pixels, scored as a new frame
+    stamp_resets: int = 0  # backward stamps that started a new episode
     last_rejection: str = ""
     latencies: list[float] = field(default_factory=list)  # seconds, arrival -> scored
     batches: int = 0
@@ -58,10 +79,67 @@ class ServingStats:
             "mean_batch": self.scored / max(self.batches, 1),
             "scored": self.scored,
             "repeated": self.repeated,
-            "rejected": self.rejected,
-            "dropped": self.dropped,
+            "rejected": self.rejected.total(),
+            **{f"rejected_{reason}": count for reason, count in sorted(self.rejected.items())},
+            "dropped": self.dropped.total(),
+            **{f"dropped_{reason}": count for reason, count in sorted(self.dropped.items())},
+            "zero_stamps": self.zero_stamps,
+            "repeated_stamps": self.repeated_stamps,
+            "stamp_resets": self.stamp_resets,
             "last_rejection": self.last_rejection,
         }
+
+
+@dataclass
+class _Throttled:
+    count: int
+    summary: str  # the latest line, with {count} and {seconds} still to fill in
+    since: float
+
+
+class ThrottledLog:
+    """Lines for the node's log that may come thousands of times a second: the first of each key
+    at once, the rest as one line per `period` with their count ("rejected 812 frames in the last
+    5 s: ..."), whatever else happened in between; `once` lines only the first time."""
+
+    def __init__(self, period: float = 5.0, clock: Callable[[], float] = time.monotonic) -> None:
+        self.period, self.clock = period, clock
+        self.lines: list[tuple[str, str]] = []  # (level, line) not yet taken
+        self.throttled: dict[str, _Throttled] = {}
+        self.said: set[str] = set()
+
+    def add(self, key: str, first: str, summary: str, level: str = "warning") -> None:
+        now = self.clock()
+        entry = self.throttled.get(key)
+        if entry is None:
+            self.lines.append((level, first))
+            self.throttled[key] = _Throttled(0, summary, now)
+            return
+        entry.count, entry.summary = entry.count + 1, summary
+        if now - entry.since >= self.period:
+            self._report(key, entry, now, level)
+
+    def once(self, key: str, line: str, level: str = "warning") -> None:
+        if key not in self.said:
+            self.said.add(key)
+            self.lines.append((level, line))
+
+    def take(self) -> list[tuple[str, str]]:
+        """The lines to log now, including the counts of every key whose period is over."""
+        now = self.clock()
+        for key, entry in list(self.throttled.items()):
+            if now - entry.since >= self.period:
+                self._report(key, entry, now, "warning")
+        lines, self.lines = self.lines, []
+        return lines
+
+    def _report(self, key: str, entry: _Throttled, now: float, level: str) -> None:
+        if entry.count == 0:  # quiet for a whole period: the next one is logged at once again
+            del self.throttled[key]
+            return
+        seconds = f"{now - entry.since:.0f}"
+        self.lines.append((level, entry.summary.replace("{count}", str(entry.count)).replace("{seconds}", seconds)))
+        entry.count, entry.since = 0, now
 
 
 class StreamScorer:
@@ -69,81 +147,127 @@ class StreamScorer:
     RewardConfig (the node's `reward.*` parameters) decides shaping and tracker; a tracker may now
     reopen a subtask, so a stream's `subtask` can go down."""
 
-    def __init__(self, scorer: RewardScorer, max_pending: int = 4) -> None:
+    def __init__(
+        self,
+        scorer: RewardScorer,
+        max_pending: int = 4,
+        backward: str = "reset",
+        resize: str = "crop",
+        log: ThrottledLog | None = None,
+    ) -> None:
         if scorer.config.stage_source == "privileged":
             raise ValueError("a privileged stage (a diagnostic) needs state vectors; served streams carry images only")
+        if backward not in BACKWARD_POLICIES:
+            raise ValueError(f"backward_stamps must be one of {BACKWARD_POLICIES}, got {backward!r}")
         self.scorer = scorer
         self.max_pending = max_pending  # per stream: older waiting frames are dropped (counted)
-        self.pending: list[deque[tuple[int, np.ndarray, float, str]]] = [deque() for _ in range(scorer.num_envs)]
+        self.backward, self.resize = backward, resize
+        self.log = log or ThrottledLog()
+        self.pending: list[deque[Pending]] = [deque() for _ in range(scorer.num_envs)]
         self.last: list[ScoredFrame | None] = [None] * scorer.num_envs
+        self.newest: list[tuple[int, np.ndarray] | None] = [None] * scorer.num_envs  # (stamp, frame) accepted last
         self.stats = ServingStats()
 
     @property
     def num_pending(self) -> int:
         return sum(len(queue) for queue in self.pending)
 
-    def reject(self, reason: str) -> None:
-        self.stats.rejected += 1
-        self.stats.last_rejection = reason
+    def reject(self, reason: str, detail: str) -> None:
+        """Count and log a frame that will get no reward; `reason` is its short name."""
+        self.stats.rejected[reason] += 1
+        self.stats.last_rejection = detail
+        self.log.add(
+            f"rejected:{reason}",
+            f"rejected a frame: {detail}",
+            f"rejected {{count}} frames in the last {{seconds}} s: {detail}",
+        )
 
     def submit(
         self, stream: int, stamp: int, frame: np.ndarray, received: float | None = None, frame_id: str = ""
-    ) -> None:
+    ) -> list[ScoredFrame]:
+        """Queue one frame. Returns what had to be scored before it could be taken (the old episode's
+        frames when a backward stamp starts a new one), usually nothing."""
+        arrived = time.perf_counter() if received is None else received
+        frame = fit_square(frame, self.scorer.model.image_size, self.resize)
+        newest = self.newest[stream]
+        republished, scored = False, []
+        if stamp == 0:
+            self.stats.zero_stamps += 1
+            self.log.once(f"zero:{stream}", f"stream {stream} sends zero stamps: every frame is scored as a new one")
+        elif newest is not None and stamp < newest[0]:
+            if self.backward == "reject":
+                self.reject("stale", f"stale frame on stream {stream}: stamp {stamp} is older than {newest[0]}")
+                return []
+            scored = self.flush()  # the old episode's frames belong to it
+            self.reset(stream)
+            self.stats.stamp_resets += 1
+            jump = f"stream {stream}: stamp went back {(newest[0] - stamp) / 1e9:.3f} s"
+            self.log.add(
+                f"backward:{stream}",
+                f"{jump}: a new episode (tracker reset)",
+                f"{{count}} backward stamps in the last {{seconds}} s, each a new episode; latest: {jump}",
+            )
+        elif newest is not None and stamp == newest[0]:
+            republished = np.array_equal(frame, newest[1])
+            if not republished:
+                self.stats.repeated_stamps += 1
+                self.log.once(
+                    f"repeated:{stream}",
+                    f"stream {stream} repeats stamps with new pixels: each is scored as a new frame",
+                )
         queue = self.pending[stream]
-        newest = queue[-1][0] if queue else (self.last[stream].stamp if self.last[stream] else None)
-        if newest is not None and stamp < newest:
-            self.reject(f"stale frame on stream {stream}: stamp {stamp} is older than {newest}")
-            return
-        if queue and stamp == newest:
-            return  # the same frame twice before it was scored
-        frame = resize_frames(frame[None], self.scorer.model.image_size)[0]
-        queue.append((stamp, frame, time.perf_counter() if received is None else received, frame_id))
+        if republished and queue:
+            self.stats.repeated += 1  # the same frame twice before it was scored: its twin's reward answers both
+            return scored
+        self.newest[stream] = (stamp, frame)
+        queue.append(Pending(stamp, frame, arrived, frame_id, republished))
         while len(queue) > self.max_pending:
             queue.popleft()
-            self.stats.dropped += 1
+            self.stats.dropped["overflow"] += 1
+        return scored
 
     def flush(self) -> list[ScoredFrame]:
         """Score everything pending in one forward pass. Trackers and novelty memories then advance
         in rounds: round r holds each stream's r-th frame, so frames of different streams count as
         simultaneous (like N environments stepped together) and a stream's own frames stay in order."""
         results: list[ScoredFrame] = []
-        waiting: list[tuple[int, int, int, np.ndarray, float, str]] = []  # (round, stream, stamp, frame, ...)
+        waiting: list[tuple[int, int, Pending]] = []  # (round, stream, frame)
         for stream, queue in enumerate(self.pending):
             position = 0
             while queue:
-                stamp, frame, arrived, frame_id = queue.popleft()
+                item = queue.popleft()
                 last = self.last[stream]
-                if last is not None and stamp == last.stamp:
-                    results.append(dataclasses.replace(last, received=arrived, repeated=True))
+                if item.republished and last is not None:
+                    results.append(replace(last, received=item.received, frame_id=item.frame_id, repeated=True))
                     self.stats.repeated += 1
                     continue
-                waiting.append((position, stream, stamp, frame, arrived, frame_id))
+                waiting.append((position, stream, item))
                 position += 1
         if not waiting:
             return results
-        waiting.sort(key=lambda item: item[0])  # stable: round by round, streams in order within one
+        waiting.sort(key=lambda entry: entry[0])  # stable: round by round, streams in order within one
         parts = self.scorer.score_frames(
-            np.stack([item[3] for item in waiting]),
-            envs=np.array([item[1] for item in waiting]),
-            rounds=np.array([item[0] for item in waiting]),
+            np.stack([item.frame for _, _, item in waiting]),
+            envs=np.array([entry[1] for entry in waiting]),
+            rounds=np.array([entry[0] for entry in waiting]),
         )
         now = time.perf_counter()
-        for index, (_, stream, stamp, _, arrived, frame_id) in enumerate(waiting):
+        for index, (_, stream, item) in enumerate(waiting):
             scored = ScoredFrame(
                 stream,
-                stamp,
+                item.stamp,
                 float(parts.total[index]),
                 float(parts.distance[index]),
                 float(parts.bonus[index]),
                 float(parts.intrinsic[index]),
                 int(parts.completed[index]),  # the stage: == num_subtasks once all are done
                 bool(parts.switched[index]),
-                arrived,
-                frame_id,
+                item.received,
+                item.frame_id,
             )
             self.last[stream] = scored
             results.append(scored)
-            self.stats.latencies.append(now - arrived)
+            self.stats.latencies.append(now - item.received)
         self.stats.scored += len(waiting)
         self.stats.batches += 1
         return results
@@ -153,6 +277,7 @@ class StreamScorer:
         simulator's clock starts over); the exploration memories are kept. Flush first."""
         self.scorer.reset(stream)
         self.last[stream] = None
+        self.newest[stream] = None
 
     def take_stats(self) -> dict[str, float | int | str]:
         summary = self.stats.summary()

@@ -7,12 +7,14 @@
 #   bash scripts/long_horizon.sh [METHOD ...]     # default: all methods
 #   bash scripts/long_horizon.sh --collect        # only copy and summarise what runs/long-horizon holds
 # Environment: INEST_MODEL (reward model folder, default results/long-horizon/reward-model),
+# INEST_PIXEL_MODEL (the same with pixel stage heads, default results/long-horizon/reward-model-pixel),
 # INEST_SEEDS (default "0 1 2"), INEST_PARALLEL (default 2).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 BIN="${INEST_VENV:-$ROOT/.venv}/bin"
 MODEL="${INEST_MODEL:-results/long-horizon/reward-model}"
+PIXEL_MODEL="${INEST_PIXEL_MODEL:-results/long-horizon/reward-model-pixel}"  # + pixel stage heads
 RUNS=runs/long-horizon
 CONFIG=inest_agent_node/config/train.yaml
 
@@ -22,6 +24,8 @@ declare -A METHODS=(
   [inest3-embedding]="--reward inest --model $MODEL --intrinsic embedding --total-steps 300000"
   [inest3-none]="--reward inest --model $MODEL --intrinsic none --total-steps 300000"
   [inest3-embedding-state-obs]="--reward inest --model $MODEL --intrinsic embedding --observation state --total-steps 300000"
+  [inest3-pixel-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000"
+  [inest3-pixel-classifier-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --tracker classifier --total-steps 300000"
   # DIAGNOSTIC, never a method: the learned shaping with the stage and bonus of the true progress
   [inest3-privileged-stage]="--reward inest --model $MODEL --intrinsic embedding --stage-source privileged --total-steps 300000"
 )

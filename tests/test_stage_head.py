@@ -1,0 +1,62 @@
+"""The pixel stage head: learns a stage that only the pixels show, is saved with the model, and feeds
+the classifier trackers when `stage_evidence` is "pixels"."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+from inest_reward_node.model import ModelError, load_model
+from inest_reward_node.rewards import RewardScorer
+from inest_reward_node.stage_head import WEIGHTS_FILE, StageHeadConfig, fit_stage_head
+from inest_reward_node.stages import RewardConfig
+
+
+def marked_frames(stages: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Noisy grey 48 px frames with one bright 8 px square per completed stage along the top."""
+    frames = rng.integers(90, 130, size=(len(stages), 48, 48, 3), dtype=np.uint8)
+    for index, stage in enumerate(stages):
+        for mark in range(stage):
+            frames[index, 4:12, 4 + 14 * mark : 12 + 14 * mark] = 250
+    return frames
+
+
+def test_the_head_reads_a_stage_only_the_pixels_show():
+    rng = np.random.default_rng(0)
+    stages = [rng.integers(0, 4, size=64) for _ in range(4)]
+    config = StageHeadConfig(iterations=60, batch_size=32)
+    head = fit_stage_head([marked_frames(s, rng) for s in stages], stages, 4, config)
+    held = rng.integers(0, 4, size=200)
+    at_least = head.at_least(marked_frames(held, rng))
+    assert at_least.shape == (200, 4)
+    np.testing.assert_allclose(at_least[:, 0], 1.0, rtol=1e-5)
+    predicted = (at_least >= 0.5).sum(axis=1) - 1  # the highest stage it is confident of
+    assert (predicted == held).mean() > 0.95
+
+
+def test_heads_are_saved_with_the_model_and_used_only_when_asked(tiny_tcc_run, tmp_path):
+    _, run_dir = tiny_tcc_run
+    folder = run_dir / "model"
+    assert (folder / WEIGHTS_FILE).is_file()
+    first, second = load_model(folder), load_model(folder)
+    frames = np.zeros((3, 48, 48, 3), np.uint8) + np.arange(3, dtype=np.uint8)[:, None, None, None] * 60
+    for scheme in (1, 3, 6):
+        np.testing.assert_array_equal(
+            first.goals(scheme).stage_head.at_least(frames), second.goals(scheme).stage_head.at_least(frames)
+        )
+    pixels = RewardConfig(tracker="classifier", stage_evidence="pixels")
+    scorer = RewardScorer(first, 3, num_envs=3, config=pixels)
+    parts = scorer.score_frames(frames)
+    assert parts.total.shape == (3,)
+    with pytest.raises(ValueError, match="needs every frame's stage_evidence"):
+        scorer.score_embeddings(first.embed(frames))
+    assert RewardScorer(first, 3, num_envs=3).stage_evidence(frames) is None  # the default reads the embedding
+    first.goals(3).stage_head = None  # a model calibrated before the head existed
+    with pytest.raises(ModelError, match=r"no pixel stage head .* recalibrate"):
+        RewardScorer(first, 3, config=pixels)
+    without = tmp_path / "model"
+    shutil.copytree(folder, without)
+    (without / WEIGHTS_FILE).unlink()
+    with pytest.raises(ModelError, match="cannot load the stage heads"):
+        load_model(without)

@@ -32,6 +32,7 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Float32, Int32
 from std_srvs.srv import Trigger
 
+from .calibrate import TCC_SCHEMES
 from .images import ImageRejected, decode_image
 from .intrinsic import IntrinsicConfig
 from .model import ModelError, load_model
@@ -51,6 +52,17 @@ class RewardNodeConfig:
     max_pending: int = 4  # per stream; older unscored frames are dropped (and counted)
     diagnostics_period: float = 1.0  # seconds
     threads: int = 1  # torch threads: one keeps batch-1 latency steady when the simulator and agent share the cores
+
+    def __post_init__(self) -> None:
+        if self.subtasks not in TCC_SCHEMES:
+            raise ValueError(f"subtasks must be one of {TCC_SCHEMES}, got {self.subtasks}")
+        for name in ("max_batch", "max_pending", "threads"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if not self.diagnostics_period > 0:
+            raise ValueError(f"diagnostics_period must be positive (seconds), got {self.diagnostics_period}")
+        if not self.streams or len(set(self.streams)) != len(self.streams):
+            raise ValueError(f"streams must be distinct and at least one, got {list(self.streams)}")
 
 
 def declare_reward_config(node: Node, prefix: str = "reward.") -> RewardConfig:

@@ -5,15 +5,23 @@ checkpoint the agent and stop every process cleanly; a restarted simulator is re
 from __future__ import annotations
 
 import dataclasses
+import json
+import os
+import re
+import signal
 import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
 import yaml
 from inest_agent_node.train import Trainer
 from inest_bringup.launcher import graph_environment
+from inest_bringup.supervisor import Outcome, RespawnPolicy, Supervisor
 from rosgraph import BIN, fresh_domain
 from test_agent import tiny_config
+from test_graph import TINY_AGENT, count_steps, reward_node_args, sim_node_args
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -103,3 +111,82 @@ def test_corrupt_run_files_and_an_empty_resume_are_one_line_and_exit_2(saved_run
         assert (runs[name] / "checkpoint" / name).read_bytes() == before[name]  # nothing saved is lost
     assert_refused(empty, f"nothing to resume in {tmp_path / 'never-ran'}")
     assert_refused(agent, "inest-agent-node: nothing to resume in", "no-agent-run")
+
+
+def test_the_supervisor_restarts_with_back_off_and_stops_a_node_that_keeps_dying(tmp_path):
+    def supervise(name: str, code: int, policy: RespawnPolicy) -> Supervisor:
+        script = f"import sys; print('run of {name}'); sys.exit({code})"
+        supervisor = Supervisor([(name, [sys.executable, "-c", script])], tmp_path, dict(os.environ), policy)
+        supervisor.start_all()
+        while not supervisor.check():
+            time.sleep(0.01)
+        return supervisor
+
+    dying = supervise("sim0", 3, RespawnPolicy(max_respawns=2, delay=0.05))
+    assert dying.outcome.status == 1
+    assert "sim0 keeps dying (exit status 3 after 2 restarts)" in dying.outcome.message
+    assert (tmp_path / "sim0.log").read_text().count("run of sim0") == 3  # the first run and two restarts
+    refusing = supervise("reward", 2, RespawnPolicy(delay=0.05))
+    assert refusing.outcome == Outcome(2, "reward refused its configuration: run of reward")  # never restarted
+    assert supervise("agent", 0, RespawnPolicy()).outcome == Outcome(0, "")  # the run is over
+
+
+def launch(tmp_path: Path, tiny_model: Path, *extra: str) -> subprocess.Popen:
+    out = open(tmp_path / "launcher.log", "w")  # noqa: SIM115 (closed with the process)
+    return subprocess.Popen(
+        [BIN / "inest-launch", "--out", tmp_path / "graph", "--model", tiny_model, "--domain-id", extra[0],
+         "--interval", "1", "--param", "sim:image_size:=48", *extra[1:]],
+        stdout=out, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+
+
+def wait_for_line(path: Path, text: str) -> None:
+    while text not in path.read_text():
+        time.sleep(0.2)
+
+
+def test_a_bad_parameter_stops_the_launcher_with_its_line_and_exit_2(tiny_model, tmp_path):
+    launcher = launch(tmp_path, tiny_model, str(fresh_domain()), "--no-agent", "--param", "reward:max_pending:=0")
+    assert launcher.wait(120) == 2
+    output = (tmp_path / "launcher.log").read_text()
+    assert (
+        "inest-launch: reward refused its configuration: inest-reward-node: max_pending must be >= 1, got 0" in output
+    )
+    assert "Traceback" not in output and "restarting" not in output
+
+
+def test_the_launcher_respawns_a_killed_simulator_and_ctrl_c_checkpoints_the_agent(tiny_model, tmp_path):
+    domain = fresh_domain()
+    agent = [arg for value in [*TINY_AGENT[1::2], "step_timeout:=1.0"] for arg in ("--param", f"agent:{value}")]
+    launcher = launch(tmp_path, tiny_model, str(domain), "--steps", "100000", "--respawn-delay", "0.5", *agent)
+    env = graph_environment(domain, tmp_path / "ros")
+    assert count_steps(env, 150, timeout=180) >= 150
+    pid = int(re.search(r"started sim0 \(pid (\d+)\)", (tmp_path / "launcher.log").read_text())[1])
+    os.kill(pid, signal.SIGKILL)
+    wait_for_line(tmp_path / "launcher.log", "restarted sim0")
+    assert count_steps(env, 100, timeout=180) >= 100  # the agent reset the new simulator and trains on
+    launcher.send_signal(signal.SIGINT)
+    assert launcher.wait(180) == 130
+    logs = tmp_path / "graph" / "logs"
+    assert "sim0: the simulator restarted; resetting it" in (logs / "agent.log").read_text()
+    assert "checkpoint saved" in (logs / "agent.log").read_text()
+    assert (tmp_path / "graph" / "agent" / "checkpoint" / "model.zip").exists()
+    for log in [tmp_path / "launcher.log", *logs.glob("*.log")]:
+        assert "Traceback" not in log.read_text(), log
+
+
+def test_the_agent_resets_a_restarted_simulator_and_finishes(graph, tiny_model, tmp_path):
+    graph.start("sim0", *sim_node_args("sim0"))
+    graph.start("reward", *reward_node_args(tiny_model, "-p", "streams:=[sim0]"))
+    agent = graph.start(
+        "agent", "inest-agent-node", "--ros-args", "-p", "namespaces:=[sim0]", "-p", f"out:={tmp_path / 'run'}",
+        "-p", f"model:={tiny_model}",
+        "-p", "total_steps:=300", "-p", "step_timeout:=1.0", *TINY_AGENT,
+    )  # fmt: skip
+    assert count_steps(graph.env, 150, timeout=120) >= 150  # mid-episode (episodes are 100 steps)
+    graph.running["sim0"].kill()
+    graph.running["sim0"].wait()
+    graph.start("sim0-restarted", *sim_node_args("sim0"))  # its clock and episodes start over
+    assert agent.wait(240) == 0, graph.log("agent")
+    assert json.loads((tmp_path / "run" / "results.json").read_text())["steps"] == 300
+    assert "sim0: the simulator restarted; resetting it" in graph.log("agent")

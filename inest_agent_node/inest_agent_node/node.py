@@ -83,7 +83,20 @@ class AgentNode(Node):
                 print(format_table({f"{Path(policy).name} over the graph": result}), flush=True)
                 return
             trainer = Trainer(config, settings.out, settings.resume, env=env, overlap_updates=settings.overlap_updates)
-            result = trainer.train()
+            try:
+                result = trainer.train()
+            except (KeyboardInterrupt, Exception):
+                if self.context.ok():
+                    raise
+                # Ctrl-C or SIGTERM shut ROS down under the step (KeyboardInterrupt, ExternalShutdownException,
+                # or an RCLError from a publisher whose context just went): keep what was learned
+                trainer.save_checkpoint()
+                print(
+                    f"inest-agent-node: stopped at step {trainer.model.num_timesteps}; checkpoint saved in "
+                    f"{Path(settings.out) / CHECKPOINT_DIR} (resume:=true continues)",
+                    flush=True,
+                )
+                return
             print(format_table({f"{config.reward} ({trainer.model.num_timesteps} steps)": result}), flush=True)
             self.get_logger().info(f"wrote {Path(settings.out) / RESULTS_FILE}")
         finally:

@@ -99,7 +99,12 @@ class Trainer:
         if config.learner.startswith("sbx"):
             configure_jax_threads(config.threads)
         batching = not overlap_updates and self.learned_env is not None and self.learned_env.batch_steps > 1
-        algorithm = build_learner_class(config.learner, overlap_updates=overlap_updates, reward_batching=batching)
+        algorithm = build_learner_class(
+            config.learner,
+            overlap_updates,
+            batching,
+            drops_broken_steps=env is not None,  # the graph's simulators
+        )
         if resume and (checkpoint / "model.zip").exists():
             self.model = read_run_file(
                 checkpoint / "model.zip",

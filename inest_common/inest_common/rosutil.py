@@ -109,6 +109,11 @@ def run_node(
     except config_errors as error:
         print(f"{Path(sys.argv[0]).name}: {error}", file=sys.stderr)
         return 2
+    except Exception:
+        if rclpy.ok():
+            raise
+        # raised because Ctrl-C or SIGTERM shut ROS down under the node (an RCLError from a
+        # publisher or timer whose context just went): a clean stop, not a crash
     finally:
         if node is not None:
             node.destroy_node()

@@ -15,13 +15,18 @@ import time
 from pathlib import Path
 
 import pytest
+import rclpy
 import yaml
 from inest_agent_node.train import Trainer
 from inest_bringup.launcher import graph_environment
+from inest_bringup.monitor import GraphMonitor
 from inest_bringup.supervisor import Outcome, RespawnPolicy, Supervisor
+from inest_interfaces.msg import Reward
+from inest_reward_node.serving import StreamScorer
 from rosgraph import BIN, fresh_domain
 from test_agent import tiny_config
 from test_graph import TINY_AGENT, count_steps, reward_node_args, sim_node_args
+from test_serving import FRAMES, scorer
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -190,3 +195,22 @@ def test_the_agent_resets_a_restarted_simulator_and_finishes(graph, tiny_model, 
     assert agent.wait(240) == 0, graph.log("agent")
     assert json.loads((tmp_path / "run" / "results.json").read_text())["steps"] == 300
     assert "sim0: the simulator restarted; resetting it" in graph.log("agent")
+
+
+def test_the_subtask_reaches_num_subtasks_in_the_reward_and_the_monitor_shows_done(tmp_path):
+    streams = StreamScorer(scorer(1))
+    streams.scorer.trackers[0].completed = 3  # every subtask done
+    streams.submit(0, 50, FRAMES[0])
+    assert streams.flush()[0].subtask == 3 == streams.scorer.num_subtasks  # what Reward.subtask carries
+    rclpy.init(domain_id=fresh_domain())
+    try:
+        monitor = GraphMonitor(["sim0"])
+        for subtask in (1, 2, 3):
+            monitor.on_reward(0, Reward(total=float(subtask), subtask=subtask, num_subtasks=3))
+        assert "sim0: r +3.000 subtask 3/3 done" in monitor.line()
+        axis = monitor.trace_figure().axes[1]
+        assert [label.get_text() for label in axis.get_yticklabels()] == ["0", "1", "2", "done"]
+        assert list(axis.lines[0].get_ydata()) == [1, 2, 3]
+        monitor.destroy_node()
+    finally:
+        rclpy.shutdown()

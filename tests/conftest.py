@@ -55,3 +55,18 @@ def tiny_tcc_run(tiny_demos, tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("tcc_run")
     pretrain(config, run_dir, progress_bar=False)
     return config, run_dir
+
+
+@pytest.fixture
+def tiny_model(tiny_tcc_run):
+    return tiny_tcc_run[1] / "model"
+
+
+@pytest.fixture
+def graph(tmp_path):
+    """Node processes on a private ROS domain, stopped at the end of the test."""
+    from rosgraph import Processes, fresh_domain
+
+    processes = Processes(fresh_domain(), tmp_path)
+    yield processes
+    processes.stop_all()

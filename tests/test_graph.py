@@ -20,7 +20,7 @@ from inest_reward_node.model import load_model
 from inest_reward_node.rewards import RewardScorer, replay
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
-from rosgraph import BIN, Processes, fresh_domain
+from rosgraph import BIN, fresh_domain
 from rosgraph_msgs.msg import Clock
 
 pytestmark = pytest.mark.timeout(300)
@@ -29,18 +29,6 @@ TINY_AGENT = [  # a few hundred steps, updates from step 100, no periodic evalua
     "-p", "sac.learning_starts:=100", "-p", "eval_every:=1000000", "-p", "final_eval_episodes:=2",
     "-p", "checkpoint_every:=100", "-p", "sac.buffer_size:=10000",
 ]  # fmt: skip
-
-
-@pytest.fixture
-def tiny_model(tiny_tcc_run):
-    return tiny_tcc_run[1] / "model"
-
-
-@pytest.fixture
-def graph(tmp_path):
-    processes = Processes(fresh_domain(), tmp_path)
-    yield processes
-    processes.stop_all()
 
 
 def reward_node_args(model, *extra: str) -> list[str]:

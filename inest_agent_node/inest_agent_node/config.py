@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from inest_reward_node.calibrate import TCC_SCHEMES
 from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.runs import merge_settings
 from inest_reward_node.stages import RewardConfig
@@ -37,6 +38,20 @@ class SacConfig:
     gradient_steps: int = 2  # per update: 2 per vector step of 4 environments, a replay ratio of 0.5
     net_arch: tuple[int, ...] = (256, 256)
     ent_coef: str = "auto"
+
+    def __post_init__(self) -> None:
+        for name in ("learning_rate", "buffer_size", "batch_size", "train_freq"):
+            if not getattr(self, name) > 0:  # also rejects NaN
+                raise ValueError(f"sac.{name} must be positive, got {getattr(self, name)}")
+        for name in ("tau", "gamma"):
+            if not 0 < getattr(self, name) <= 1:
+                raise ValueError(f"sac.{name} must be in (0, 1], got {getattr(self, name)}")
+        if self.learning_starts < 0:
+            raise ValueError(f"sac.learning_starts must be >= 0, got {self.learning_starts}")
+        if self.gradient_steps < 1 and self.gradient_steps != -1:
+            raise ValueError(f"sac.gradient_steps must be >= 1 (-1: one per env step), got {self.gradient_steps}")
+        if not self.net_arch or min(self.net_arch) < 1:
+            raise ValueError(f"sac.net_arch must list positive layer widths, got {list(self.net_arch)}")
 
 
 @dataclass(frozen=True)
@@ -72,6 +87,8 @@ class TrainConfig:
             raise ValueError(f"unknown reward {self.reward!r}; expected one of {REWARDS}")
         if self.reward not in ("env", "topic") and not self.model:
             raise ValueError(f"the {self.reward} reward needs a reward model folder (model)")
+        if self.subtasks not in TCC_SCHEMES:
+            raise ValueError(f"subtasks must be one of {TCC_SCHEMES}, got {self.subtasks!r}")
         if self.reward != "inest" and self.intrinsic.mode != "none":
             raise ValueError(f"the intrinsic bonus belongs to the inest reward, not {self.reward}")
         if self.observation not in STATE_OBSERVATIONS:
@@ -92,10 +109,14 @@ class TrainConfig:
             "total_steps",
             "eval_every",
             "eval_episodes",
+            "final_eval_episodes",
             "checkpoint_every",
+            "threads",
         ):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
 
     @property
     def stage_subtasks(self) -> int:

@@ -5,7 +5,10 @@ Environment i lives under namespace `namespaces[i]`: it publishes `action`, and 
 pairing.py). Resets go through the simulator's `reset` and the reward node's `reset_reward`
 services. When something stays silent for `timeout` seconds, it logs which topic of which
 simulator, re-sends the action (a lockstep simulator re-publishes a step it already took) and
-keeps waiting: a restarted reward node or simulator picks the run up where it stopped.
+keeps waiting: a restarted reward node picks the run up where it stopped. A restarted simulator
+(its clock starts over, so it ignores the action) shows up as a new publisher of its
+`episode_status`: the environment is reset and its step in flight comes back as a broken one
+(BROKEN_STEP in its info, the episode truncated) that the learner does not store.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from std_srvs.srv import Trigger
 from inest_sim_node import SweepToTopEnv
 
 from .envs import BONUS, INTRINSIC, LEARNED_STAGE, SHAPING, TRUE_PROGRESS
+from .learners import BROKEN_STEP
 from .pairing import REWARD, STATE, STATUS, StepMailbox
 
 
@@ -40,11 +44,13 @@ class GraphVecEnv(VecEnv):
         self.executor.add_node(node)
         qos = QoSProfile(depth=10)
         self.mailboxes = [StepMailbox(learned_reward) for _ in namespaces]
-        self.action_pubs, self.sim_resets, self.reward_resets = [], [], []
+        self.action_pubs, self.sim_resets, self.reward_resets, self.status_subs = [], [], [], []
         for index, namespace in enumerate(namespaces):
             self.action_pubs.append(node.create_publisher(Action, namespaced(namespace, "action"), qos))
-            node.create_subscription(
-                EpisodeStatus, namespaced(namespace, "episode_status"), lambda m, i=index: self.on_status(i, m), qos
+            self.status_subs.append(
+                node.create_subscription(
+                    EpisodeStatus, namespaced(namespace, "episode_status"), lambda m, i=index: self.on_status(i, m), qos
+                )
             )
             node.create_subscription(State, namespaced(namespace, "state"), lambda m, i=index: self.on_state(i, m), qos)
             self.sim_resets.append(node.create_client(ResetEpisode, namespaced(namespace, "reset")))
@@ -56,6 +62,9 @@ class GraphVecEnv(VecEnv):
         self.while_waiting: Callable[[], None] | None = None  # work to do once the actions are out
         self.stamps = np.zeros(self.num_envs, dtype=np.int64)  # each environment's current observation
         self.actions = np.zeros((self.num_envs, 3), dtype=np.float32)
+        self.observations = np.zeros((self.num_envs, *self.observation_space.shape), dtype=np.float32)
+        self.last_infos: list[dict[str, Any]] = [{} for _ in namespaces]  # each environment's latest step
+        self.simulators: list[set[tuple[int, ...]]] = [set() for _ in namespaces]  # status publishers known
 
     # --- message intake ------------------------------------------------------------
     def on_status(self, index: int, msg: EpisodeStatus) -> None:
@@ -79,22 +88,60 @@ class GraphVecEnv(VecEnv):
                     resend()
                 deadline = time.monotonic() + self.timeout
 
-    def call(self, client, request, what: str):
+    def call(self, client, request, what: str, ask_again=lambda: False):
+        """The service's answer; on a timeout, the request goes out again if `ask_again()` (the
+        server restarted: the new one never saw it)."""
         self.wait_until(client.service_is_ready, lambda: f"service {client.srv_name} ({what}) is not available")
-        future = client.call_async(request)
-        self.wait_until(future.done, lambda: f"no answer from {client.srv_name} ({what})")
-        return future.result()
+        futures = [client.call_async(request)]
+
+        def retry() -> None:
+            if ask_again():
+                futures.append(client.call_async(request))
+
+        self.wait_until(
+            lambda: any(f.done() for f in futures), lambda: f"no answer from {client.srv_name} ({what})", retry
+        )
+        return next(f for f in futures if f.done()).result()
 
     # --- VecEnv --------------------------------------------------------------------------
     def reset_env(self, index: int, seed: int | None) -> np.ndarray:
         if self.learned_reward:
             self.call(self.reward_resets[index], Trigger.Request(), "reward tracker reset")
-        response = self.call(self.sim_resets[index], ResetEpisode.Request(seed=-1 if seed is None else seed), "reset")
+        request = ResetEpisode.Request(seed=-1 if seed is None else seed)
+        response = self.call(self.sim_resets[index], request, "reset", lambda: self.restarted(index))
         if not response.success:
             raise RuntimeError(f"{self.namespaces[index] or 'simulator'} refused to reset: {response.message}")
-        self.stamps[index] = stamp_ns(response.header.stamp)
-        self.mailboxes[index].forget_before(int(self.stamps[index]))
-        return np.asarray(response.state, dtype=np.float32)
+        stamp = stamp_ns(response.header.stamp)
+        if stamp <= self.stamps[index]:  # the clock went back: a new simulator process, whose stamps repeat old ones
+            self.mailboxes[index] = StepMailbox(self.learned_reward)
+        self.stamps[index] = stamp
+        self.mailboxes[index].forget_before(stamp)
+        self.simulators[index] = self.status_publishers(index)
+        self.observations[index] = response.state
+        self.last_infos[index] = self.step_info(EpisodeStatus(), Reward())  # stage 0, nothing scored yet
+        return self.observations[index].copy()
+
+    def status_publishers(self, index: int) -> set[tuple[int, ...]]:
+        """The publishers of this environment's episode status now (one per simulator process)."""
+        topic = self.status_subs[index].topic_name
+        return {tuple(info.endpoint_gid) for info in self.node.get_publishers_info_by_topic(topic)}
+
+    def restarted(self, index: int) -> bool:
+        """A simulator process this environment has not been reset with publishes its status: the
+        simulator was restarted (the dead one stays listed for a while, so only a new one counts)."""
+        return bool(self.status_publishers(index) - self.simulators[index])
+
+    def step_info(self, status: EpisodeStatus, reward: Reward) -> dict[str, Any]:
+        """A step's info: the simulator's reward and score, and the learned reward's stage and parts."""
+        info: dict[str, Any] = {
+            "env_reward": status.env_reward,
+            "score": status.score,
+            TRUE_PROGRESS: round(status.score * NUM_BLOCKS),
+        }
+        if self.learned_reward:
+            info[LEARNED_STAGE], info[INTRINSIC] = reward.subtask, reward.intrinsic_bonus
+            info[SHAPING], info[BONUS] = reward.distance_reward, reward.subtask_bonus
+        return info
 
     def reset(self) -> np.ndarray:
         observations = np.stack([self.reset_env(i, self._seeds[i]) for i in range(self.num_envs)])
@@ -130,9 +177,21 @@ class GraphVecEnv(VecEnv):
                 if i not in results
             )
 
+        broken: dict[int, dict[str, Any]] = {}  # environments whose step never happened: their infos
+
         def resend() -> None:
             for index in range(self.num_envs):
-                if index not in results:
+                if index in results:
+                    continue
+                if self.restarted(index):
+                    self.node.get_logger().warning(
+                        f"{self.namespaces[index] or '/'}: the simulator restarted; resetting it (its step is dropped)"
+                    )
+                    terminal = {"terminal_observation": self.observations[index].copy(), "TimeLimit.truncated": True}
+                    broken[index] = {**self.last_infos[index], **terminal, BROKEN_STEP: True}
+                    self.reset_env(index, None)
+                    results[index] = (int(self.stamps[index]), {})
+                else:
                     self.publish_action(index)
 
         if self.while_waiting is not None:
@@ -143,22 +202,17 @@ class GraphVecEnv(VecEnv):
         dones = np.zeros(self.num_envs, dtype=bool)
         infos: list[dict[str, Any]] = []
         for index in range(self.num_envs):
+            if index in broken:  # already reset: the new episode's first observation
+                observations[index], dones[index] = self.observations[index], True
+                infos.append(broken[index])
+                continue
             new_stamp, messages = results[index]
             status = messages[STATUS]
             observation = np.asarray(messages[STATE].values, dtype=np.float32)
-            info: dict[str, Any] = {
-                "env_reward": status.env_reward,
-                "score": status.score,
-                TRUE_PROGRESS: round(status.score * NUM_BLOCKS),
-            }
-            if self.learned_reward:
-                reward = messages[REWARD]
-                rewards[index] = reward.total
-                info[LEARNED_STAGE], info[INTRINSIC] = reward.subtask, reward.intrinsic_bonus
-                info[SHAPING], info[BONUS] = reward.distance_reward, reward.subtask_bonus
-            else:
-                rewards[index] = status.env_reward
-            self.stamps[index] = new_stamp
+            reward = messages.get(REWARD, Reward())
+            rewards[index] = reward.total if self.learned_reward else status.env_reward
+            info = self.step_info(status, reward)
+            self.stamps[index], self.observations[index], self.last_infos[index] = new_stamp, observation, dict(info)
             dones[index] = status.terminated or status.truncated
             if dones[index]:
                 info["TimeLimit.truncated"] = status.truncated and not status.terminated

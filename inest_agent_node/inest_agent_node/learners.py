@@ -11,7 +11,9 @@ therefore mixins that go on top of whichever class `LEARNERS` names (`build_lear
   defers the update to `run_pending_updates`, which calls the learner's own `train`);
 - RewardBatchingMixin overrides `OffPolicyAlgorithm._store_transition(...)` (holds a transition
   until its learned reward is scored) and `BaseAlgorithm._excluded_save_params()` (the held
-  transitions are not saved).
+  transitions are not saved);
+- BrokenStepsMixin overrides `OffPolicyAlgorithm._store_transition(...)` too (stores nothing for
+  a vector step on which an environment's step never happened).
 
 Neither touches `learn()`, `collect_rollouts()` or the policy; what runs around `learn()`
 (progress, evaluation, diagnostics, checkpoints) is callbacks.py's stable-baselines3 callbacks.
@@ -26,6 +28,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import inspect
+import itertools
 import os
 import sys
 import warnings
@@ -200,6 +203,22 @@ class RewardBatchingMixin:
         self.store_scored_transitions()
 
 
+BROKEN_STEP = "broken_step"  # info flag: this environment's step never happened (GraphVecEnv: its simulator restarted)
+
+
+class BrokenStepsMixin:
+    """For the graph's simulators, which can restart mid-episode (GraphVecEnv): an environment whose
+    step never happened has no next observation, only a new episode's first one. The vector step it
+    is part of is not stored; a replay buffer row holds every environment's transition, so with N
+    simulators the others lose that one transition each, and nothing else is dropped."""
+
+    def _store_transition(self, replay_buffer, buffer_action, new_obs, reward, dones, infos) -> None:
+        if any(info.get(BROKEN_STEP) for info in infos):
+            self._last_obs = new_obs  # what stable-baselines3 does after storing: act on the new observations
+            return
+        super()._store_transition(replay_buffer, buffer_action, new_obs, reward, dones, infos)
+
+
 class TransitionHolder:
     """Stands in for the replay buffer in `_store_transition`: keeps the transition it is given."""
 
@@ -210,28 +229,34 @@ class TransitionHolder:
         self.held.append(transition)
 
 
-def _variant_name(name: str, overlap_updates: bool, reward_batching: bool) -> str:
+def _variant_name(name: str, overlap_updates: bool, reward_batching: bool, drops_broken_steps: bool = False) -> str:
     prefix = ("Overlapped" if overlap_updates else "") + ("RewardBatching" if reward_batching else "")
-    return prefix + _CLASS_STEMS[name]
+    return prefix + ("BrokenStepDropping" if drops_broken_steps else "") + _CLASS_STEMS[name]
 
 
-def build_learner_class(name: str, overlap_updates: bool = False, reward_batching: bool = False) -> type:
+def build_learner_class(
+    name: str, overlap_updates: bool = False, reward_batching: bool = False, drops_broken_steps: bool = False
+) -> type:
     """The learner `name` with the chosen mixins, e.g. ("sbx_sac", overlap_updates=True) -> OverlappedSbxSAC.
 
     One class per combination (cached), so `.load()` of a saved model goes through the same class
     that saved it; with neither mixin it is the plain class of LEARNERS. The class is also an
     attribute of this module under its name (module __getattr__), so pickling a model finds it.
     """
-    return _build_learner_class(name, bool(overlap_updates), bool(reward_batching))
+    return _build_learner_class(name, bool(overlap_updates), bool(reward_batching), bool(drops_broken_steps))
 
 
 @cache  # positional, normalised arguments: one cache entry, so one class, per combination
-def _build_learner_class(name: str, overlap_updates: bool, reward_batching: bool) -> type:
+def _build_learner_class(name: str, overlap_updates: bool, reward_batching: bool, drops_broken_steps: bool) -> type:
     base = learner_class(name)
-    mixins = (OverlappedUpdatesMixin,) * overlap_updates + (RewardBatchingMixin,) * reward_batching
+    mixins = (
+        (OverlappedUpdatesMixin,) * overlap_updates
+        + (RewardBatchingMixin,) * reward_batching
+        + (BrokenStepsMixin,) * drops_broken_steps
+    )
     if not mixins:
         return base
-    class_name = _variant_name(name, overlap_updates, reward_batching)
+    class_name = _variant_name(name, overlap_updates, reward_batching, drops_broken_steps)
     doc = f"{base.__name__} ({name}) with " + " and ".join(mixin.__name__ for mixin in mixins) + "."
     return type(class_name, (*mixins, base), {"__module__": __name__, "__qualname__": class_name, "__doc__": doc})
 
@@ -239,10 +264,9 @@ def _build_learner_class(name: str, overlap_updates: bool, reward_batching: bool
 def __getattr__(attribute: str) -> type:
     """Variant classes by name (`learners.OverlappedSbxSAC`), built on first access."""
     for name in _LEARNER_PATHS:
-        for overlap in (False, True):
-            for batching in (False, True):
-                if (overlap or batching) and _variant_name(name, overlap, batching) == attribute:
-                    return build_learner_class(name, overlap, batching)
+        for flags in itertools.product((False, True), repeat=3):
+            if any(flags) and _variant_name(name, *flags) == attribute:
+                return build_learner_class(name, *flags)
     if attribute == "SbxDroQ":
         return _sbx_droq()
     raise AttributeError(f"module {__name__!r} has no attribute {attribute!r}")

@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from inest_common.files import read_run_file
 from inest_common.rosutil import declare_dataclass, run_node
 from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.model import ModelError
@@ -47,6 +48,12 @@ class AgentNodeConfig:
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"unknown mode {self.mode!r}; expected one of {MODES}")
+        if not self.namespaces or len(set(self.namespaces)) != len(self.namespaces):
+            raise ValueError(f"namespaces must be distinct and at least one, got {list(self.namespaces)}")
+        if not self.step_timeout > 0:
+            raise ValueError(f"step_timeout must be positive (seconds), got {self.step_timeout}")
+        if self.episodes < 1:
+            raise ValueError(f"episodes must be at least 1, got {self.episodes}")
 
 
 def agent_train_defaults() -> TrainConfig:
@@ -71,12 +78,25 @@ class AgentNode(Node):
         try:
             if settings.mode == "evaluate":
                 policy = settings.policy or str(Path(settings.out) / CHECKPOINT_DIR / "model.zip")
-                model = learner_class(config.learner).load(policy, env=env)
+                model = read_run_file(Path(policy), lambda path: learner_class(config.learner).load(path, env=env))
                 result = evaluate_vec_env(env, deterministic(model), settings.episodes, config.seed)
                 print(format_table({f"{Path(policy).name} over the graph": result}), flush=True)
                 return
             trainer = Trainer(config, settings.out, settings.resume, env=env, overlap_updates=settings.overlap_updates)
-            result = trainer.train()
+            try:
+                result = trainer.train()
+            except (KeyboardInterrupt, Exception):
+                if self.context.ok():
+                    raise
+                # Ctrl-C or SIGTERM shut ROS down under the step (KeyboardInterrupt, ExternalShutdownException,
+                # or an RCLError from a publisher whose context just went): keep what was learned
+                trainer.save_checkpoint()
+                print(
+                    f"inest-agent-node: stopped at step {trainer.model.num_timesteps}; checkpoint saved in "
+                    f"{Path(settings.out) / CHECKPOINT_DIR} (resume:=true continues)",
+                    flush=True,
+                )
+                return
             print(format_table({f"{config.reward} ({trainer.model.num_timesteps} steps)": result}), flush=True)
             self.get_logger().info(f"wrote {Path(settings.out) / RESULTS_FILE}")
         finally:

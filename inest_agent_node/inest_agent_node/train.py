@@ -19,11 +19,12 @@ from typing import Any
 
 import numpy as np
 import torch
-from inest_common.files import write_atomic
+from inest_common.files import RunFileError, read_json, read_run_file, write_atomic
+from inest_reward_node.calibrate import TCC_SCHEMES
 from inest_reward_node.coverage import measure_coverage, plot_coverage
 from inest_reward_node.intrinsic import INTRINSIC_MODES
 from inest_reward_node.model import ModelError
-from inest_reward_node.runs import merge_settings, prepare_run_dir
+from inest_reward_node.runs import CONFIG_FILE, merge_settings, prepare_run_dir
 from inest_reward_node.stages import SHAPINGS, STAGE_EVIDENCE, STAGE_SOURCES, TRACKERS
 from inest_sim_node.config import ORACLE_REWARDS
 from inest_sim_node.observation import STATE_OBSERVATIONS
@@ -98,18 +99,23 @@ class Trainer:
         if config.learner.startswith("sbx"):
             configure_jax_threads(config.threads)
         batching = not overlap_updates and self.learned_env is not None and self.learned_env.batch_steps > 1
-        algorithm = build_learner_class(config.learner, overlap_updates=overlap_updates, reward_batching=batching)
+        algorithm = build_learner_class(
+            config.learner,
+            overlap_updates,
+            batching,
+            drops_broken_steps=env is not None,  # the graph's simulators
+        )
         if resume and (checkpoint / "model.zip").exists():
-            self.model = algorithm.load(
-                checkpoint / "model.zip", env=self.env, tensorboard_log=str(self.run_dir / "tensorboard")
+            self.model = read_run_file(
+                checkpoint / "model.zip",
+                lambda path: algorithm.load(path, env=self.env, tensorboard_log=str(self.run_dir / "tensorboard")),
             )
-            self.model.load_replay_buffer(checkpoint / "replay_buffer.pkl")
-            self.history = json.loads((checkpoint / HISTORY_FILE).read_text())
+            read_run_file(checkpoint / "replay_buffer.pkl", self.model.load_replay_buffer)
+            self.history = read_run_file(checkpoint / HISTORY_FILE, read_json)
             if (checkpoint / DIAGNOSTICS_FILE).exists():
-                self.diagnostics = json.loads((checkpoint / DIAGNOSTICS_FILE).read_text())
+                self.diagnostics = read_run_file(checkpoint / DIAGNOSTICS_FILE, read_json)
             if self.learned_env is not None and (checkpoint / EXPLORATION_FILE).exists():
-                with np.load(checkpoint / EXPLORATION_FILE) as state:
-                    self.learned_env.restore_exploration({key: state[key] for key in state.files})
+                self.learned_env.restore_exploration(read_run_file(checkpoint / EXPLORATION_FILE, read_npz))
         else:
             self.model = algorithm(
                 "MlpPolicy",
@@ -127,6 +133,8 @@ class Trainer:
         return evaluate_vec_env(self.eval_env, deterministic(self.model), episodes, self.config.seed)
 
     def check_run_dir(self, resume: bool) -> None:
+        if resume and not (self.run_dir / CONFIG_FILE).is_file():
+            raise RunFileError(f"nothing to resume in {self.run_dir}: it holds no earlier run ({CONFIG_FILE})")
         settings = self.config.to_dict()
         prepare_run_dir(self.run_dir, settings, resume, set(settings) - {"total_steps", "reward_batch_steps"})
 
@@ -186,10 +194,15 @@ class Trainer:
         return result
 
 
+def read_npz(path: Path) -> dict[str, np.ndarray]:
+    with np.load(path) as arrays:
+        return {key: arrays[key] for key in arrays.files}
+
+
 def reference_curve(runs_root: Path) -> list[list[float]] | None:
     """The learning curve of an env-reward run next to this one, if there is one."""
     for results in sorted(runs_root.glob(f"*/{RESULTS_FILE}")):
-        data = json.loads(results.read_text())
+        data = read_run_file(results, read_json)
         if data["config"]["reward"] == "env":
             return data["learning_curve"]
     return None
@@ -215,7 +228,7 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     parser.add_argument("--reward", choices=REWARDS)
     parser.add_argument("--model", help="reward model folder (a pretraining run's model/)")
-    parser.add_argument("--subtasks", type=int, choices=(1, 3, 6))
+    parser.add_argument("--subtasks", type=int, choices=TCC_SCHEMES)
     parser.add_argument("--intrinsic", choices=INTRINSIC_MODES)
     parser.add_argument("--view", choices=("ego", "allo"))
     parser.add_argument("--observation", choices=STATE_OBSERVATIONS, help="stage (default) or the bare state")

@@ -7,8 +7,35 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import pickle
+import zipfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
+
+T = TypeVar("T")
+# what reading back a damaged or missing file raises: a truncated pickle (UnpicklingError, EOFError),
+# a damaged zip or npz, corrupt JSON (ValueError), torch refusing its contents (RuntimeError), a
+# stable-baselines3 model.zip without its data (it asserts)
+UNREADABLE = (
+    OSError, EOFError, pickle.UnpicklingError, zipfile.BadZipFile, ValueError, KeyError, RuntimeError, AssertionError
+)  # fmt: skip
+
+
+class RunFileError(ValueError):
+    """A run's saved file cannot be read back; the message names it (a ValueError: a bad configuration)."""
+
+
+def read_run_file(path: Path, read: Callable[[Path], T]) -> T:
+    """`read(path)`, with any failure to read or parse the file turned into one RunFileError naming it."""
+    try:
+        return read(path)
+    except UNREADABLE as reason:
+        raise RunFileError(f"cannot read {path}: {reason or type(reason).__name__}") from reason
+
+
+def read_json(path: Path) -> Any:
+    return json.loads(path.read_text())
 
 
 def sha256_of(path: Path) -> str:

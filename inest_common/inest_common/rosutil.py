@@ -6,12 +6,15 @@ Only the node modules import this (it imports rclpy); the libraries stay free of
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import rclpy
 from builtin_interfaces.msg import Time
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
@@ -31,11 +34,32 @@ def namespaced(namespace: str, name: str) -> str:
     return f"{namespace.strip('/')}/{name}" if namespace.strip("/") else name
 
 
+class ParameterError(ValueError):
+    """A parameter the node was started with has the wrong type or a name the node does not have."""
+
+
+def _checked(name: str, value: Any, default: Any) -> Any:
+    """`value` as the type of `default` (ints are accepted for floats): parameters are declared
+    with dynamic typing so that a wrong type reaches this one-line message, not rclpy's traceback."""
+    if isinstance(default, tuple):
+        items = [] if value is None else value
+        if not isinstance(items, list):
+            raise ParameterError(f"parameter {name} must be a list, got {value!r}")
+        return tuple(_checked(name, item, default[0]) for item in items) if default else tuple(items)
+    kind = str if default is None else type(default)
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if type(value) is not kind:
+        expected = {bool: "true or false", int: "an integer", float: "a number", str: "a string"}[kind]
+        raise ParameterError(f"parameter {name} must be {expected}, got {value!r}")
+    return None if default is None and value == "" else value
+
+
 def declare_dataclass(node: Node, instance: Any, prefix: str = "") -> dict[str, Any]:
     """Declare one ROS parameter per field (nested dataclasses as `field.sub`), the dataclass's
     defaults as the parameters' defaults; return the values the node was started with, nested
-    like the dataclass (None defaults are declared as "" and come back as None when unset; tuple
-    fields are declared as lists and come back as tuples)."""
+    like the dataclass, each checked against its field's type (None defaults are declared as ""
+    and come back as None when unset; tuple fields are declared as lists and come back as tuples)."""
     values: dict[str, Any] = {}
     for field in dataclasses.fields(instance):
         default = getattr(instance, field.name)
@@ -43,14 +67,24 @@ def declare_dataclass(node: Node, instance: Any, prefix: str = "") -> dict[str, 
         if dataclasses.is_dataclass(default):
             values[field.name] = declare_dataclass(node, default, f"{name}.")
             continue
-        if default is None:
-            value = node.declare_parameter(name, "").value
-            values[field.name] = None if value == "" else value
-        elif isinstance(default, tuple):
-            values[field.name] = tuple(node.declare_parameter(name, list(default)).value)
-        else:
-            values[field.name] = node.declare_parameter(name, default).value
+        declared = "" if default is None else list(default) if isinstance(default, tuple) else default
+        value = node.declare_parameter(name, declared, ParameterDescriptor(dynamic_typing=True)).value
+        values[field.name] = _checked(name, value, default)
     return values
+
+
+def reject_unknown_parameters(node: Node) -> None:
+    """A parameter given on the command line or in a params file that the node never declared is a
+    typo the node would otherwise silently ignore."""
+    overrides = node._parameter_overrides  # rclpy has no public accessor for them
+    unknown = sorted(name for name in overrides if not node.has_parameter(name))
+    if unknown:
+        declared = list(node._parameters)
+        hints = [
+            f"{name} (did you mean {close[0]}?)" if (close := difflib.get_close_matches(name, declared, 1)) else name
+            for name in unknown
+        ]
+        raise ParameterError(f"{node.get_name()} has no parameter {', '.join(hints)}")
 
 
 def run_node(
@@ -59,11 +93,13 @@ def run_node(
     config_errors: tuple[type[Exception], ...] = (ValueError,),
 ) -> int:
     """Init from sys.argv (so `--ros-args -p ... --params-file ...` work), spin, shut down cleanly
-    on Ctrl-C or SIGTERM. `config_errors` mean a bad configuration: one line on stderr, exit 2."""
+    on Ctrl-C or SIGTERM. `config_errors` (and ParameterError: a wrong type or an unknown name)
+    mean a bad configuration: one line on stderr, exit 2."""
     rclpy.init(args=sys.argv)  # also turns SIGINT and SIGTERM into ExternalShutdownException
     node = None
     try:
         node = make_node()
+        reject_unknown_parameters(node)
         if spin is None:
             rclpy.spin(node)
         else:
@@ -71,8 +107,13 @@ def run_node(
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except config_errors as error:
-        print(f"{sys.argv[0]}: {error}", file=sys.stderr)
+        print(f"{Path(sys.argv[0]).name}: {error}", file=sys.stderr)
         return 2
+    except Exception:
+        if rclpy.ok():
+            raise
+        # raised because Ctrl-C or SIGTERM shut ROS down under the node (an RCLError from a
+        # publisher or timer whose context just went): a clean stop, not a crash
     finally:
         if node is not None:
             node.destroy_node()

@@ -35,6 +35,7 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Float32, Int32
 from std_srvs.srv import Trigger
 
+from .calibrate import TCC_SCHEMES
 from .images import RESIZE_MODES, ImageRejected, decode_image
 from .intrinsic import IntrinsicConfig
 from .model import ModelError, load_model
@@ -68,6 +69,15 @@ class RewardNodeConfig:
             raise ValueError(
                 f"need 1 <= min_image_size <= max_image_size, got {self.min_image_size} and {self.max_image_size}"
             )
+        if self.subtasks not in TCC_SCHEMES:
+            raise ValueError(f"subtasks must be one of {TCC_SCHEMES}, got {self.subtasks}")
+        for name in ("max_batch", "max_pending", "threads"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if not self.diagnostics_period > 0:
+            raise ValueError(f"diagnostics_period must be positive (seconds), got {self.diagnostics_period}")
+        if not self.streams or len(set(self.streams)) != len(self.streams):
+            raise ValueError(f"streams must be distinct and at least one, got {list(self.streams)}")
 
 
 def declare_reward_config(node: Node, prefix: str = "reward.") -> RewardConfig:

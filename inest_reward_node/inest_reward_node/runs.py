@@ -8,6 +8,8 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from inest_common.files import read_json, read_run_file
+
 CONFIG_FILE = "config.json"
 
 
@@ -33,7 +35,7 @@ def prepare_run_dir(
         if not resume:
             raise FileExistsError(f"{run_dir} already holds a run; pass --resume to continue it or pick --out")
         as_json = json.loads(json.dumps({"settings": settings, "defaults": defaults or {}}))  # tuples -> lists
-        saved = merge_settings(as_json["defaults"], json.loads(path.read_text()))
+        saved = merge_settings(as_json["defaults"], read_run_file(path, read_json))
         differing = sorted(key for key in must_match if saved.get(key) != as_json["settings"][key])
         if differing:
             raise ValueError(f"cannot resume {run_dir}: settings differ from the saved run: {', '.join(differing)}")

@@ -48,8 +48,11 @@ class SimNodeConfig:
         unknown = set(self.cameras) - set(VIEWS)
         if unknown or not self.cameras:
             raise ValueError(f"cameras must be a non-empty subset of {VIEWS}, got {list(self.cameras)}")
-        if self.image_size <= 0:
-            raise ValueError(f"image_size must be positive, got {self.image_size}")
+        for name in ("image_size", "max_steps"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
 
 
 class SimNode(Node):

@@ -5,8 +5,11 @@ All nodes read one params file (config/inest.params.yaml by default). Discovery 
 machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless `--discovery subnet`, and uses the
 fast-discovery Fast DDS profile shipped next to the params file. The run folder gets each
 node's output in logs/, ROS's own logs in logs/ros/, the agent's run in agent/ and, at the end,
-reward_trace.png; `--record FILE` adds the recorder (inest-record) to the graph. Ctrl-C (or the
-agent finishing) stops every child: the agent first.
+reward_trace.png; `--record FILE` adds the recorder (inest-record) to the graph. A node that
+exits is restarted (supervisor.py: `--respawn` times in a row, with back-off; the agent with
+resume:=true); a node that keeps dying or refuses its configuration stops the graph. Ctrl-C or
+SIGTERM (or the agent finishing) stops every child, the agent first (it saves a checkpoint);
+the launcher then exits 130 (143 for SIGTERM).
 """
 
 from __future__ import annotations
@@ -18,18 +21,22 @@ import shutil
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from inest_agent_node.evaluate import EvalResult, format_table
 from inest_agent_node.train import RESULTS_FILE
+from inest_reward_node.runs import CONFIG_FILE
 
 from .recording import RecordingError, check_target
+from .supervisor import RespawnPolicy, Supervisor
 
 CONFIG_DIR_NAME = "config"
 PARAMS_FILE = "inest.params.yaml"
 FASTDDS_PROFILE = "fastdds_localhost.xml"
 NODES = ("sim", "reward", "agent")
 STOP_GRACE_S = 10.0
+AGENT_STOP_GRACE_S = 120.0  # the agent writes its checkpoint (model, replay buffer) before it exits
 
 
 def config_dir() -> Path:
@@ -117,12 +124,24 @@ def stop(children: dict[str, subprocess.Popen]) -> None:
         process = children[name]
         if process.poll() is None:
             process.send_signal(signal.SIGINT)
+            grace = AGENT_STOP_GRACE_S if name == "agent" else STOP_GRACE_S
             try:
-                process.wait(STOP_GRACE_S)
+                process.wait(grace)
             except subprocess.TimeoutExpired:
-                print(f"inest-launch: {name} ignored SIGINT for {STOP_GRACE_S:.0f} s, killing it", file=sys.stderr)
+                print(f"inest-launch: {name} ignored SIGINT for {grace:.0f} s, killing it", file=sys.stderr)
                 process.kill()
                 process.wait()
+
+
+def resuming_agent(run_dir: Path) -> Callable[[str, list[str]], list[str]]:
+    """Restart commands: the agent continues its run from the last checkpoint once it has one."""
+
+    def command(name: str, argv: list[str]) -> list[str]:
+        if name == "agent" and (run_dir / "agent" / CONFIG_FILE).exists() and "resume:=true" not in argv:
+            return [*argv, "-p", "resume:=true"]
+        return argv
+
+    return command
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -140,9 +159,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--param", action="append", default=[], metavar="NODE:NAME:=VALUE", help="sim|reward|agent")
     parser.add_argument("--interval", type=float, default=2.0, help="seconds between progress lines")
     parser.add_argument("--record", type=Path, metavar="FILE", help="record the reward topics to this MCAP file")
+    parser.add_argument("--respawn", type=int, default=3, help="restarts in a row of a node that exits")
+    parser.add_argument("--respawn-delay", type=float, default=1.0, help="seconds before a restart (doubles)")
     args = parser.parse_args(argv)
     if args.sims < 1:
         parser.error("--sims must be at least 1")
+    if args.respawn < 0 or args.respawn_delay < 0:
+        parser.error("--respawn and --respawn-delay must be >= 0")
     if not args.params.is_file():
         parser.error(f"no params file at {args.params}")
     if args.record:
@@ -165,31 +188,31 @@ def main(argv: list[str] | None = None) -> int:
     env = graph_environment(args.domain_id, run_dir / "logs" / "ros", args.discovery == "localhost")
     os.environ.update(env)
     import rclpy  # after the environment above: the monitor joins the same graph
+    from rclpy.signals import SignalHandlerOptions
 
     from .monitor import GraphMonitor, watch
 
-    children: dict[str, subprocess.Popen] = {}
-    for name, command in commands:
-        log = open(run_dir / "logs" / f"{name}.log", "w")  # noqa: SIM115 (lives as long as the child)
-        children[name] = subprocess.Popen(
-            command, stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True
-        )
-        print(f"inest-launch: started {name} (pid {children[name].pid}), log {log.name}", flush=True)
-    rclpy.init()
+    policy = RespawnPolicy(max_respawns=args.respawn, delay=args.respawn_delay)
+    supervisor = Supervisor(commands, run_dir / "logs", env, policy, resuming_agent(run_dir))
+    stopped_by: list[int] = []  # the signal that asked the launcher to stop
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, lambda number, frame: stopped_by.append(number))
+    supervisor.start_all()
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # the handlers above stop the graph
     monitor = GraphMonitor(simulator_namespaces(args.sims))
     status = 0
     try:
-        watch(monitor, args.interval, until=lambda: any(p.poll() is not None for p in children.values()))
-        for name, process in children.items():
-            if process.poll() not in (None, 0):
-                print(f"inest-launch: {name} exited with status {process.returncode}; see its log", file=sys.stderr)
-                status = process.returncode
-        if "agent" in children and children["agent"].poll() == 0:
+        watch(monitor, args.interval, until=lambda: bool(stopped_by) or supervisor.check())
+        if stopped_by:
+            print("\ninest-launch: stopping", flush=True)
+            status = 128 + stopped_by[0]
+        elif supervisor.outcome is not None and supervisor.outcome.status:
+            print(f"inest-launch: {supervisor.outcome.message}", file=sys.stderr)
+            status = supervisor.outcome.status
+        else:
             print_results(run_dir / "agent" / RESULTS_FILE)
-    except KeyboardInterrupt:
-        print("\ninest-launch: stopping", flush=True)
     finally:
-        stop(children)
+        stop(supervisor.processes)
         monitor.plot(run_dir / "reward_trace.png")
         monitor.destroy_node()
         if rclpy.ok():

@@ -31,6 +31,7 @@ class StreamView:
     scores: deque = field(default_factory=lambda: deque(maxlen=20))
     reward: float = float("nan")
     subtask: str = "-"
+    num_subtasks: int = 0
     trace: deque = field(default_factory=lambda: deque(maxlen=TRACE_STEPS))  # (reward, subtask)
 
 
@@ -52,7 +53,9 @@ class GraphMonitor(Node):
 
     def on_reward(self, index: int, msg: Reward) -> None:
         view = self.views[index]
-        view.reward, view.subtask = msg.total, f"{msg.subtask}/{msg.num_subtasks}"
+        done = " done" if msg.subtask >= msg.num_subtasks else ""  # Reward.subtask == num_subtasks: all done
+        view.reward, view.subtask = msg.total, f"{msg.subtask}/{msg.num_subtasks}{done}"
+        view.num_subtasks = msg.num_subtasks
         view.trace.append((msg.total, msg.subtask))
 
     def on_status(self, index: int, msg: EpisodeStatus) -> None:
@@ -88,6 +91,14 @@ class GraphMonitor(Node):
 
     def plot(self, path: str | Path) -> None:
         """Reward and subtask over the last steps of each stream."""
+        import matplotlib.pyplot as plt
+
+        figure = self.trace_figure()
+        figure.savefig(path, dpi=100)
+        plt.close(figure)
+
+    def trace_figure(self):
+        """The reward-trace figure: the subtask axis runs 0 .. num_subtasks, its top labelled "done"."""
         import matplotlib
 
         matplotlib.use("Agg")
@@ -101,10 +112,13 @@ class GraphMonitor(Node):
                 bottom.step(range(len(subtasks)), subtasks, where="post", label=namespace or "/")
         top.set(ylabel="learned reward", title=f"reward trace (last {TRACE_STEPS} frames per stream)")
         bottom.set(xlabel="frame", ylabel="subtask")
+        subtasks = max((view.num_subtasks for view in self.views), default=0)
+        if subtasks:
+            bottom.set_yticks(range(subtasks + 1), [*map(str, range(subtasks)), "done"])
+            bottom.set_ylim(-0.2, subtasks + 0.2)
         top.legend(loc="upper left")
         figure.tight_layout()
-        figure.savefig(path, dpi=100)
-        plt.close(figure)
+        return figure
 
 
 def watch(monitor: GraphMonitor, interval: float, until=lambda: False, duration: float | None = None) -> None:

@@ -3,6 +3,8 @@
 The same nodes and params file as `inest-launch` (the pip set-up's launcher): simulators in
 namespaces sim0, sim1, ..., one reward node scoring all of them, one agent learning from all.
 `agent:=false` starts simulators and reward node only (e.g. with `mode:=realtime` to watch).
+Simulators and reward node respawn like under `inest-launch` (RESPAWN: up to 3 times, 2 s apart);
+the agent does not (a restarted agent needs resume:=true: start it again with that).
 """
 
 from pathlib import Path
@@ -14,6 +16,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 SHARE = Path(get_package_share_directory("inest_bringup"))
+RESPAWN = {"respawn": True, "respawn_delay": 2.0, "respawn_max_retries": 3}
 
 
 def graph(context):
@@ -30,6 +33,7 @@ def graph(context):
             namespace=namespace,
             parameters=[params, {"publish_clock": index == 0, "mode": value("mode")}],
             output="screen",
+            **RESPAWN,
         )
         for index, namespace in enumerate(namespaces)
     ]
@@ -37,7 +41,13 @@ def graph(context):
     if value("model"):
         reward["model"] = value("model")
     nodes.append(
-        Node(package="inest_reward_node", executable="inest-reward-node", parameters=[params, reward], output="screen")
+        Node(
+            package="inest_reward_node",
+            executable="inest-reward-node",
+            parameters=[params, reward],
+            output="screen",
+            **RESPAWN,
+        )
     )
     if value("agent").lower() == "true":
         agent = {"namespaces": namespaces, "out": value("out")}

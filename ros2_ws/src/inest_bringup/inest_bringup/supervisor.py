@@ -1,0 +1,129 @@
+"""Keeping the graph's node processes alive (no ROS imports): the launcher's respawn logic.
+
+Like `respawn`/`respawn_delay` of ROS launch, with a bound: a node that exits is started again
+after `delay` seconds, doubled for each further restart in a row; one that stays up for
+`healthy_after` seconds starts its count over. The graph stops, with one message, when a node
+keeps dying (more than `max_respawns` restarts in a row), when one refuses its configuration
+(exit code 2: a restart would only repeat it), or when the agent finishes (exit 0).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+CONFIG_ERROR = 2  # the nodes' exit code for a bad parameter or run file
+FINISHES = "agent"  # the node whose exit 0 means the run is over
+
+
+@dataclass(frozen=True)
+class RespawnPolicy:
+    max_respawns: int = 3  # restarts in a row before the graph is stopped
+    delay: float = 1.0  # seconds before the first restart, doubled for each further one
+    healthy_after: float = 60.0  # seconds up after which a node's restarts count from zero again
+
+    def __post_init__(self) -> None:
+        if self.max_respawns < 0 or self.delay < 0 or self.healthy_after <= 0:
+            raise ValueError(f"respawn: max_respawns and delay must be >= 0, healthy_after positive, got {self}")
+
+
+@dataclass
+class Child:
+    name: str
+    command: list[str]
+    log: Path
+    process: subprocess.Popen | None = None
+    started: float = 0.0
+    restarts: int = 0  # in a row
+    due: float | None = None  # when the scheduled restart starts it
+
+
+@dataclass(frozen=True)
+class Outcome:
+    status: int  # the launcher's exit code
+    message: str  # why the graph stops ("" when the agent finished)
+
+
+class Supervisor:
+    """The node processes of one graph. `check()` handles exits and due restarts, and says when
+    the graph must stop (`outcome`). `respawn_command(name, command)` gives the argv of a restart."""
+
+    def __init__(
+        self,
+        commands: list[tuple[str, list[str]]],
+        log_dir: Path,
+        env: dict[str, str],
+        policy: RespawnPolicy,
+        respawn_command: Callable[[str, list[str]], list[str]] = lambda name, command: command,
+    ) -> None:
+        self.children = {name: Child(name, command, log_dir / f"{name}.log") for name, command in commands}
+        self.env, self.policy, self.respawn_command = env, policy, respawn_command
+        self.outcome: Outcome | None = None
+
+    def start_all(self) -> None:
+        for child in self.children.values():
+            self.start(child, "w")
+
+    def start(self, child: Child, mode: str) -> None:
+        with open(child.log, mode) as log:  # the child keeps its own copy of the descriptor
+            child.process = subprocess.Popen(
+                child.command, stdout=log, stderr=subprocess.STDOUT, env=self.env, start_new_session=True
+            )
+        child.started, child.due = time.monotonic(), None
+        verb = "restarted" if mode == "a" else "started"
+        print(f"inest-launch: {verb} {child.name} (pid {child.process.pid}), log {child.log}", flush=True)
+
+    @property
+    def processes(self) -> dict[str, subprocess.Popen]:
+        return {name: child.process for name, child in self.children.items() if child.process is not None}
+
+    def check(self) -> bool:
+        """Restart what is due, schedule restarts of what exited; True once the graph must stop."""
+        now = time.monotonic()
+        for child in self.children.values():
+            if child.due is not None:
+                if now >= child.due:
+                    child.command = self.respawn_command(child.name, child.command)
+                    with open(child.log, "a") as log:
+                        log.write(f"\n--- inest-launch: restart {child.restarts} ---\n")
+                    self.start(child, "a")
+                continue
+            code = child.process.poll() if child.process is not None else None
+            if code is not None:
+                self.outcome = self.exited(child, code, now)
+                if self.outcome is not None:
+                    return True
+        return False
+
+    def exited(self, child: Child, code: int, now: float) -> Outcome | None:
+        if child.name == FINISHES and code == 0:
+            return Outcome(0, "")
+        if code == CONFIG_ERROR:
+            return Outcome(CONFIG_ERROR, f"{child.name} refused its configuration: {last_line(child.log)}")
+        if now - child.started >= self.policy.healthy_after:
+            child.restarts = 0
+        if child.restarts >= self.policy.max_respawns:
+            return Outcome(
+                1,
+                f"{child.name} keeps dying (exit status {code} after {child.restarts} restarts); "
+                f"stopping the graph, see {child.log}",
+            )
+        delay = self.policy.delay * 2**child.restarts
+        child.restarts += 1
+        child.due = now + delay
+        print(
+            f"inest-launch: {child.name} exited with status {code}; restarting it in {delay:.0f} s "
+            f"(restart {child.restarts} of {self.policy.max_respawns})",
+            file=sys.stderr,
+            flush=True,
+        )
+        return None
+
+
+def last_line(path: Path) -> str:
+    lines = [line for line in path.read_text(errors="replace").splitlines() if line.strip()]
+    return lines[-1] if lines else "(its log is empty)"

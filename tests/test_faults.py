@@ -1,0 +1,216 @@
+"""Faults a user runs into, with real processes: bad parameters and corrupt run files give one line
+naming the problem and exit code 2; killed nodes are respawned by the launcher; Ctrl-C and SIGTERM
+checkpoint the agent and stop every process cleanly; a restarted simulator is reset and training goes on."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import rclpy
+import yaml
+from inest_agent_node.train import Trainer
+from inest_bringup.launcher import graph_environment
+from inest_bringup.monitor import GraphMonitor
+from inest_bringup.supervisor import Outcome, RespawnPolicy, Supervisor
+from inest_interfaces.msg import Reward
+from inest_reward_node.serving import StreamScorer
+from rosgraph import BIN, fresh_domain
+from test_agent import tiny_config
+from test_graph import TINY_AGENT, count_steps, reward_node_args, sim_node_args
+from test_serving import FRAMES, scorer
+
+pytestmark = pytest.mark.timeout(300)
+
+
+def start(tmp_path: Path, *argv: str) -> subprocess.Popen:
+    env = graph_environment(fresh_domain(), tmp_path / "ros")
+    return subprocess.Popen(
+        [str(BIN / argv[0]), *argv[1:]], env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True,
+    )  # fmt: skip
+
+
+def assert_refused(process: subprocess.Popen, *expected: str) -> str:
+    """Exit code 2 and one stderr line (after any log lines) saying `expected`, no traceback."""
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 2, stderr
+    assert "Traceback" not in stderr, stderr
+    last = stderr.strip().splitlines()[-1]
+    for part in expected:
+        assert part in last, stderr
+    return last
+
+
+def test_bad_parameters_are_one_line_and_exit_2_on_every_node(tmp_path):
+    (tmp_path / "params.yaml").write_text("/**/inest_agent_node:\n  ros__parameters:\n    total_step: 5\n")
+    cases = [  # (command, what its error line must say), all started at once
+        (["inest-sim-node", "-p", "image_size:=big"], ["parameter image_size must be an integer, got 'big'"]),
+        (["inest-sim-node", "-p", "max_step:=5"], ["no parameter max_step (did you mean max_steps?)"]),
+        (["inest-sim-node", "-p", "seed:=-1"], ["seed must be >= 0, got -1"]),
+        (["inest-reward-node", "-p", "subtasks:=three"], ["parameter subtasks must be an integer, got 'three'"]),
+        (["inest-reward-node", "-p", "max_pending:=0"], ["max_pending must be >= 1, got 0"]),
+        (["inest-reward-node", "-p", "intrinsic.k:=1.5"], ["parameter intrinsic.k must be an integer, got 1.5"]),
+        (["inest-agent-node", "-p", "subtasks:=three"], ["parameter subtasks must be an integer, got 'three'"]),
+        (["inest-agent-node", "-p", "subtasks:=4"], ["subtasks must be one of (1, 3, 6), got 4"]),
+        (["inest-agent-node", "-p", "sac.batch_size:=0"], ["sac.batch_size must be positive, got 0"]),
+        (["inest-agent-node", "-p", "step_timeout:=0"], ["step_timeout must be positive (seconds), got 0.0"]),
+        (
+            ["inest-agent-node", "--params-file", str(tmp_path / "params.yaml")],
+            ["inest_agent_node has no parameter total_step (did you mean total_steps?)"],
+        ),
+    ]
+    started = [(start(tmp_path, command[0], "--ros-args", *command[1:]), expected) for command, expected in cases]
+    for process, expected in started:
+        assert_refused(process, *expected)
+
+
+@pytest.fixture(scope="module")
+def saved_run(tmp_path_factory):
+    """A finished 200-step run with its checkpoint, and the YAML of its settings for inest-train."""
+    root = tmp_path_factory.mktemp("saved_run")
+    config = dataclasses.replace(tiny_config(200), learner="sac")
+    Trainer(config, root / "run", progress_bar=False).train()
+    (root / "train.yaml").write_text(yaml.safe_dump(config.to_dict()))
+    return root
+
+
+def damaged_copy(saved_run: Path, tmp_path: Path, name: str, damage) -> Path:
+    """A copy of the saved run with checkpoint/`name` damaged by `damage(bytes) -> bytes`."""
+    run = tmp_path / name.replace(".", "_")
+    subprocess.run(["cp", "-r", saved_run / "run", run], check=True)
+    path = run / "checkpoint" / name
+    path.write_bytes(damage(path.read_bytes()))
+    return run
+
+
+def test_corrupt_run_files_and_an_empty_resume_are_one_line_and_exit_2(saved_run, tmp_path):
+    def truncate(data: bytes) -> bytes:
+        return data[: len(data) // 2]
+
+    runs = {
+        "replay_buffer.pkl": damaged_copy(saved_run, tmp_path, "replay_buffer.pkl", truncate),
+        "history.json": damaged_copy(saved_run, tmp_path, "history.json", lambda data: b"[[200, 0.1"),
+        "model.zip": damaged_copy(saved_run, tmp_path, "model.zip", truncate),
+    }
+    before = {name: (run / "checkpoint" / name).read_bytes() for name, run in runs.items()}
+    config = str(saved_run / "train.yaml")
+    trains = {
+        name: start(tmp_path, "inest-train", "--out", str(run), "--config", config, "--resume")
+        for name, run in runs.items()
+    }
+    empty = start(tmp_path, "inest-train", "--out", str(tmp_path / "never-ran"), "--config", config, "--resume")
+    agent = start(
+        tmp_path, "inest-agent-node", "--ros-args", "-p", "resume:=true", "-p", f"out:={tmp_path / 'no-agent-run'}"
+    )
+    for name, process in trains.items():
+        assert_refused(process, "inest-train: cannot read", str(runs[name] / "checkpoint" / name))
+        assert (runs[name] / "checkpoint" / name).read_bytes() == before[name]  # nothing saved is lost
+    assert_refused(empty, f"nothing to resume in {tmp_path / 'never-ran'}")
+    assert_refused(agent, "inest-agent-node: nothing to resume in", "no-agent-run")
+
+
+def test_the_supervisor_restarts_with_back_off_and_stops_a_node_that_keeps_dying(tmp_path):
+    def supervise(name: str, code: int, policy: RespawnPolicy) -> Supervisor:
+        script = f"import sys; print('run of {name}'); sys.exit({code})"
+        supervisor = Supervisor([(name, [sys.executable, "-c", script])], tmp_path, dict(os.environ), policy)
+        supervisor.start_all()
+        while not supervisor.check():
+            time.sleep(0.01)
+        return supervisor
+
+    dying = supervise("sim0", 3, RespawnPolicy(max_respawns=2, delay=0.05))
+    assert dying.outcome.status == 1
+    assert "sim0 keeps dying (exit status 3 after 2 restarts)" in dying.outcome.message
+    assert (tmp_path / "sim0.log").read_text().count("run of sim0") == 3  # the first run and two restarts
+    refusing = supervise("reward", 2, RespawnPolicy(delay=0.05))
+    assert refusing.outcome == Outcome(2, "reward refused its configuration: run of reward")  # never restarted
+    assert supervise("agent", 0, RespawnPolicy()).outcome == Outcome(0, "")  # the run is over
+
+
+def launch(tmp_path: Path, tiny_model: Path, *extra: str) -> subprocess.Popen:
+    out = open(tmp_path / "launcher.log", "w")  # noqa: SIM115 (closed with the process)
+    return subprocess.Popen(
+        [BIN / "inest-launch", "--out", tmp_path / "graph", "--model", tiny_model, "--domain-id", extra[0],
+         "--interval", "1", "--param", "sim:image_size:=48", *extra[1:]],
+        stdout=out, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+
+
+def wait_for_line(path: Path, text: str) -> None:
+    while text not in path.read_text():
+        time.sleep(0.2)
+
+
+def test_a_bad_parameter_stops_the_launcher_with_its_line_and_exit_2(tiny_model, tmp_path):
+    launcher = launch(tmp_path, tiny_model, str(fresh_domain()), "--no-agent", "--param", "reward:max_pending:=0")
+    assert launcher.wait(120) == 2
+    output = (tmp_path / "launcher.log").read_text()
+    assert (
+        "inest-launch: reward refused its configuration: inest-reward-node: max_pending must be >= 1, got 0" in output
+    )
+    assert "Traceback" not in output and "restarting" not in output
+
+
+def test_the_launcher_respawns_a_killed_simulator_and_ctrl_c_checkpoints_the_agent(tiny_model, tmp_path):
+    domain = fresh_domain()
+    agent = [arg for value in [*TINY_AGENT[1::2], "step_timeout:=1.0"] for arg in ("--param", f"agent:{value}")]
+    launcher = launch(tmp_path, tiny_model, str(domain), "--steps", "100000", "--respawn-delay", "0.5", *agent)
+    env = graph_environment(domain, tmp_path / "ros")
+    assert count_steps(env, 150, timeout=180) >= 150
+    pid = int(re.search(r"started sim0 \(pid (\d+)\)", (tmp_path / "launcher.log").read_text())[1])
+    os.kill(pid, signal.SIGKILL)
+    wait_for_line(tmp_path / "launcher.log", "restarted sim0")
+    assert count_steps(env, 100, timeout=180) >= 100  # the agent reset the new simulator and trains on
+    launcher.send_signal(signal.SIGINT)
+    assert launcher.wait(180) == 130
+    logs = tmp_path / "graph" / "logs"
+    assert "sim0: the simulator restarted; resetting it" in (logs / "agent.log").read_text()
+    assert "checkpoint saved" in (logs / "agent.log").read_text()
+    assert (tmp_path / "graph" / "agent" / "checkpoint" / "model.zip").exists()
+    for log in [tmp_path / "launcher.log", *logs.glob("*.log")]:
+        assert "Traceback" not in log.read_text(), log
+
+
+def test_the_agent_resets_a_restarted_simulator_and_finishes(graph, tiny_model, tmp_path):
+    graph.start("sim0", *sim_node_args("sim0"))
+    graph.start("reward", *reward_node_args(tiny_model, "-p", "streams:=[sim0]"))
+    agent = graph.start(
+        "agent", "inest-agent-node", "--ros-args", "-p", "namespaces:=[sim0]", "-p", f"out:={tmp_path / 'run'}",
+        "-p", f"model:={tiny_model}",
+        "-p", "total_steps:=300", "-p", "step_timeout:=1.0", *TINY_AGENT,
+    )  # fmt: skip
+    assert count_steps(graph.env, 150, timeout=120) >= 150  # mid-episode (episodes are 100 steps)
+    graph.running["sim0"].kill()
+    graph.running["sim0"].wait()
+    graph.start("sim0-restarted", *sim_node_args("sim0"))  # its clock and episodes start over
+    assert agent.wait(240) == 0, graph.log("agent")
+    assert json.loads((tmp_path / "run" / "results.json").read_text())["steps"] == 300
+    assert "sim0: the simulator restarted; resetting it" in graph.log("agent")
+
+
+def test_the_subtask_reaches_num_subtasks_in_the_reward_and_the_monitor_shows_done(tmp_path):
+    streams = StreamScorer(scorer(1))
+    streams.scorer.trackers[0].completed = 3  # every subtask done
+    streams.submit(0, 50, FRAMES[0])
+    assert streams.flush()[0].subtask == 3 == streams.scorer.num_subtasks  # what Reward.subtask carries
+    rclpy.init(domain_id=fresh_domain())
+    try:
+        monitor = GraphMonitor(["sim0"])
+        for subtask in (1, 2, 3):
+            monitor.on_reward(0, Reward(total=float(subtask), subtask=subtask, num_subtasks=3))
+        assert "sim0: r +3.000 subtask 3/3 done" in monitor.line()
+        axis = monitor.trace_figure().axes[1]
+        assert [label.get_text() for label in axis.get_yticklabels()] == ["0", "1", "2", "done"]
+        assert list(axis.lines[0].get_ydata()) == [1, 2, 3]
+        monitor.destroy_node()
+    finally:
+        rclpy.shutdown()

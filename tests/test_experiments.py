@@ -130,13 +130,16 @@ def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, caps
         ("methods: {oracle: {args: [--seed, '4']}}\n", [], "method oracle: the grid sets ['--seed'] itself"),
         ("methods: {x: {args: [--reward, xirl], model: nowhere}}\n", [], "method x: no reward model at"),
         ("methods: {x: {args: [--reward, xirl]}}\n", [], "method x: the xirl reward needs a reward model folder"),
+        ("methods: {x: {args: [--reward, xirl]}}\nconfig: t.yaml\n", [], "method x: no reward model at"),
         ("methods: {oracle: {}}\nseeds: [1, 1]\n", [], "seeds must differ"),
     ],
 )
 def test_bad_grids_are_one_line_and_exit_2(tmp_path, capsys, monkeypatch, grid, extra, message):
     monkeypatch.chdir(tmp_path)
     write_grid(tmp_path, {}, [0])  # the tiny train.yaml
-    (tmp_path / "bad.yaml").write_text(grid + "config: train.yaml\n")
+    train = yaml.safe_load((tmp_path / "train.yaml").read_text())
+    (tmp_path / "t.yaml").write_text(yaml.safe_dump(train | {"model": "nowhere"}))  # a model that is not there
+    (tmp_path / "bad.yaml").write_text(grid if "config:" in grid else grid + "config: train.yaml\n")
     assert main(["run", "bad.yaml", *extra]) == 2
     error = capsys.readouterr().err
     assert message in error and error.count("\n") == 1, error

@@ -25,9 +25,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import ctypes
 import io
 import json
 import shlex
+import signal
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
@@ -49,6 +51,8 @@ from .train import RESULTS_FILE, parse_args
 GRID_FILE = "grid.json"
 REPORT_FILE = "report.md"
 EXECUTORS = ("local", "ray")
+PR_SET_PDEATHSIG = 1  # prctl(2)
+LIBC = ctypes.CDLL(None) if sys.platform == "linux" else None  # loaded here: the child only calls it
 
 
 @dataclass(frozen=True)
@@ -103,12 +107,7 @@ def plan(grid: GridConfig, selected: list[str], workdir: Path) -> list[Cell]:
     cells = []
     for method in selected or list(grid.methods):
         spec = grid.methods[method]
-        model_args: list[str] = []
-        if spec.model is not None:
-            model = workdir / spec.model
-            if not (model / "model.json").is_file():
-                raise ValueError(f"method {method}: no reward model at {model} (model.json missing)")
-            model_args = ["--model", str(model)]
+        model_args = ["--model", str(workdir / spec.model)] if spec.model is not None else []
         for seed in grid.seeds:
             run_dir = out / method / f"seed{seed}"
             args = ("--config", str(config), "--out", str(run_dir), "--seed", str(seed), "--threads", "1")
@@ -117,6 +116,9 @@ def plan(grid: GridConfig, selected: list[str], workdir: Path) -> list[Cell]:
                 settings = train_settings(list(args))
             except ValueError as error:
                 raise ValueError(f"method {method}: {error}") from None
+            model = settings["model"]  # the grid's, else the training config's
+            if settings["reward"] != "env" and model and not (workdir / model / "model.json").is_file():
+                raise ValueError(f"method {method}: no reward model at {workdir / model} (model.json missing)")
             cells.append(Cell(method, seed, run_dir, args, workdir, settings))
     return cells
 
@@ -140,6 +142,12 @@ def record_grid(grid: GridConfig, cells: list[Cell], out: Path) -> None:
     write_atomic(path, lambda temporary: temporary.write_text(json.dumps(document, indent=2) + "\n"))
 
 
+def die_with_parent() -> None:
+    """In the training process before it starts (Linux): be killed when the runner or Ray worker
+    that started it dies, so that no orphaned run trains on beside the one a rerun resumes."""
+    LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+
+
 def run_cell(cell: Cell) -> int:
     """Train one cell as an inest-train subprocess (with --resume if it had started), its output
     appended to its log; the exit status. The same function runs here and in a Ray worker."""
@@ -149,7 +157,14 @@ def run_cell(cell: Cell) -> int:
     with open(cell.log, "a") as log:
         log.write(f"# inest-experiments: {shlex.join(command)}\n")
         log.flush()
-        return subprocess.run(command, stdout=log, stderr=subprocess.STDOUT, cwd=cell.workdir, check=False).returncode
+        return subprocess.run(
+            command,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            cwd=cell.workdir,
+            check=False,
+            preexec_fn=die_with_parent if LIBC is not None else None,
+        ).returncode
 
 
 def failure(run: Callable[[], int]) -> str | None:
@@ -206,12 +221,12 @@ def run_grid(grid: GridConfig, selected: list[str], executor: str, address: str 
         results = run_local(pending, parallel)
     failed = []
     with track(total=len(pending), unit="cell", desc="grid", disable=not pending) as bar:
-        for cell, failure in results:
-            if failure is None:
+        for cell, problem in results:
+            if problem is None:
                 bar.write(f"finished {cell.name}")
             else:
                 failed.append(cell)
-                bar.write(f"inest-experiments: {cell.name} failed ({failure}); see {cell.log}")
+                bar.write(f"inest-experiments: {cell.name} failed ({problem}); see {cell.log}")
             bar.update()
     if any(cell.finished for cell in cells):
         print(f"wrote {write_report(out, grid)}")

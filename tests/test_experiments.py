@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import signal
@@ -12,10 +13,13 @@ from pathlib import Path
 
 import pytest
 import yaml
-from inest_agent_node.experiments import main
+from inest_agent_node.experiments import main, plan
 from small_training import small_train_config
 from test_summary import write_run
 
+from inest_agent_node.config import GridConfig
+
+ROOT = Path(__file__).resolve().parent.parent
 STEPS = 400  # two evaluations and checkpoints (200, 400): a cell can be caught between them
 HEADER = "# inest-experiments:"
 
@@ -166,8 +170,32 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     assert capsys.readouterr().err.count("\n") == 1
 
 
+def test_the_shipped_grid_is_the_thesis_grid_and_its_methods_parse(monkeypatch):
+    monkeypatch.chdir(ROOT)
+    grid = GridConfig.from_yaml(ROOT / "inest_agent_node" / "config" / "grid.yaml")
+    assert (grid.seeds, grid.total_steps) == ((0, 1, 2), 500_000)
+    ready = [name for name, method in grid.methods.items() if not method.model or Path(method.model).is_dir()]
+    cells = {cell.name: cell.settings for cell in plan(grid, ready, ROOT)}
+    expected = {  # method: reward, subtasks, intrinsic bonus, camera
+        "inest3-embedding": ("inest", 3, "embedding", "ego"),
+        "inest3-state": ("inest", 3, "state", "ego"),
+        "inest3-none": ("inest", 3, "none", "ego"),
+        "inest6-embedding": ("inest", 6, "embedding", "ego"),
+        "xirl-ego": ("xirl", 3, "none", "ego"),
+        "xirl-allo": ("xirl", 3, "none", "allo"),
+        "holdr": ("holdr", 3, "none", "ego"),
+        "oracle": ("env", 3, "none", "ego"),
+    }
+    assert set(grid.methods) == set(expected)
+    assert {"inest3-embedding", "xirl-ego", "oracle"} <= set(ready)  # the committed model serves these
+    for method in ready:
+        settings = cells[f"{method}/seed2"]
+        shown = (settings["reward"], settings["subtasks"], settings["intrinsic"]["mode"], settings["view"])
+        assert shown == expected[method] and settings["total_steps"] == 500_000 and settings["threads"] == 1
+
+
+@pytest.mark.skipif(importlib.util.find_spec("ray") is None, reason="ray is not installed")
 def test_ray_tasks_train_the_same_cells_into_the_same_layout(tmp_path, capsys, tiny_model):
-    pytest.importorskip("ray")
     methods = {
         "oracle": {"args": ["--reward", "env"]},
         "inest3": {"args": ["--reward", "inest", "--intrinsic", "embedding"], "model": str(tiny_model)},

@@ -136,6 +136,7 @@ def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, caps
         ("methods: {x: {args: [--reward, xirl]}}\n", [], "method x: the xirl reward needs a reward model folder"),
         ("methods: {x: {args: [--reward, xirl]}}\nconfig: t.yaml\n", [], "method x: no reward model at"),
         ("methods: {oracle: {}}\nseeds: [1, 1]\n", [], "seeds must differ"),
+        ("methods: {oracle: {}}\nout: [a]\n", [], "out must be a path"),
     ],
 )
 def test_bad_grids_are_one_line_and_exit_2(tmp_path, capsys, monkeypatch, grid, extra, message):

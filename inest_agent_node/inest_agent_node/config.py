@@ -213,6 +213,9 @@ class GridConfig:
             raise ValueError(f"seeds must differ, got {list(self.seeds)}")
         if type(self.total_steps) is not int or self.total_steps <= 0:
             raise ValueError(f"total_steps must be a positive integer, got {self.total_steps!r}")
+        for name in ("config", "out"):
+            if not isinstance(getattr(self, name), str) or not getattr(self, name):
+                raise ValueError(f"{name} must be a path, got {getattr(self, name)!r}")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -11,7 +11,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
-        (f"share/{PACKAGE}/config", ["config/train.yaml"]),
+        (f"share/{PACKAGE}/config", ["config/train.yaml", "config/grid.yaml"]),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
@@ -25,6 +25,7 @@ setup(
             "inest-agent-node = inest_agent_node.node:main",
             "inest-train = inest_agent_node.train:main",
             "inest-summarise = inest_agent_node.summary:main",
+            "inest-experiments = inest_agent_node.experiments:main",
             "inest-record-clips = inest_agent_node.record_clips:main",
         ],
     },

@@ -65,6 +65,7 @@ ROSDEP_KEYS = {
     "sbx": "python3-sbx-rl-pip",
     "jax": "python3-jax-pip",
     "mcap": "python3-mcap-pip",
+    "ray": "python3-ray-pip",
 }
 # imports no import statement shows: by name (learners.LEARNERS) or through another library
 INDIRECT_IMPORTS = {

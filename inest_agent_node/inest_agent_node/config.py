@@ -1,7 +1,9 @@
-"""Training configuration, one typed place, loadable from YAML (`config/train.yaml`)."""
+"""Training and experiment-grid configuration, one typed place, loadable from YAML (`config/train.yaml`,
+`config/grid.yaml`)."""
 
 from __future__ import annotations
 
+import re
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -20,6 +22,12 @@ from .learners import LEARNERS
 LEARNER_NAMES = tuple(LEARNERS)
 
 REWARDS = ("env", "xirl", "holdr", "inest", "topic")  # topic: served by inest_reward_node (graph only)
+
+
+def reject_unknown(data: dict[str, Any], known: set[str], what: str) -> None:
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"unknown {what} {unknown}; expected some of {sorted(known)}")
 
 
 @dataclass(frozen=True)
@@ -133,10 +141,7 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ValueError(f"unknown training setting(s) {unknown}; expected some of {sorted(known)}")
+        reject_unknown(data, {f.name for f in fields(cls)}, "training setting(s)")
         values = dict(data)
         if values.get("reward", "inest") != "inest" and "intrinsic" not in values:
             values["intrinsic"] = IntrinsicConfig(mode="none")  # the bonus belongs to the inest reward
@@ -158,3 +163,96 @@ class TrainConfig:
         if not isinstance(data, dict):
             raise ValueError(f"{path} must hold a mapping of training settings")
         return cls.from_dict(merge_settings(data, overrides or {}))
+
+
+# inest-train flags an experiment grid sets for every cell itself (experiments.py); `model` has its own key
+GRID_FLAGS = ("--config", "--out", "--seed", "--threads", "--total-steps", "--resume", "--model")
+METHOD_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")  # a method is a folder name
+
+
+@dataclass(frozen=True)
+class MethodConfig:
+    """One method of an experiment grid: the inest-train flags that make it and the reward model
+    folder it reads (none for the oracle)."""
+
+    args: tuple[str, ...] = ()
+    model: str | None = None
+
+    def check(self, name: str) -> None:
+        if not METHOD_NAME.fullmatch(name):
+            raise ValueError(f"method name {name!r} must be a folder name (letters, digits, '.', '_', '-')")
+        if not all(isinstance(arg, str) for arg in self.args):
+            raise ValueError(f"method {name}: args must be a list of inest-train flags and values (strings)")
+        taken = sorted({arg.split("=")[0] for arg in self.args} & set(GRID_FLAGS))
+        if taken:
+            raise ValueError(f"method {name}: the grid sets {taken} itself (the reward model folder is `model:`)")
+        if self.model is not None and not isinstance(self.model, str):
+            raise ValueError(f"method {name}: model must be a folder path, got {self.model!r}")
+
+
+@dataclass(frozen=True)
+class GridConfig:
+    """An experiment grid (`inest-experiments`): every method trained with every seed for
+    `total_steps` from the training settings in `config`, each run in `out/<method>/seed<N>/`.
+    Relative paths are read from the working directory (the checkout's root)."""
+
+    methods: dict[str, MethodConfig]
+    seeds: tuple[int, ...] = (0, 1, 2)
+    total_steps: int = 500_000
+    config: str = "inest_agent_node/config/train.yaml"
+    out: str = "runs/grid"
+
+    def __post_init__(self) -> None:
+        if not self.methods:
+            raise ValueError("the grid lists no methods")
+        for name, method in self.methods.items():
+            method.check(name)
+        if not self.seeds or not all(type(seed) is int and seed >= 0 for seed in self.seeds):
+            raise ValueError(f"seeds must be a non-empty list of integers >= 0, got {list(self.seeds)}")
+        if len(set(self.seeds)) != len(self.seeds):
+            raise ValueError(f"seeds must differ, got {list(self.seeds)}")
+        if type(self.total_steps) is not int or self.total_steps <= 0:
+            raise ValueError(f"total_steps must be a positive integer, got {self.total_steps!r}")
+        for name in ("config", "out"):
+            if not isinstance(getattr(self, name), str) or not getattr(self, name):
+                raise ValueError(f"{name} must be a path, got {getattr(self, name)!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> GridConfig:
+        reject_unknown(data, {f.name for f in fields(cls)}, "grid setting(s)")
+        values = dict(data)
+        methods = values.get("methods")
+        if not isinstance(methods, dict):
+            raise ValueError("the grid needs `methods`: a mapping of method name to {args: [...], model: ...}")
+        parsed = {}
+        for name, method in methods.items():
+            method = method or {}
+            if not isinstance(method, dict):
+                raise ValueError(f"method {name} must be a mapping of args and model")
+            reject_unknown(method, {f.name for f in fields(MethodConfig)}, f"setting(s) of method {name}")
+            args = method.get("args") or []
+            if not isinstance(args, list):
+                raise ValueError(f"method {name}: args must be a list of inest-train flags and values")
+            parsed[str(name)] = MethodConfig(args=tuple(args), model=method.get("model"))
+        values["methods"] = parsed
+        if "seeds" in values:
+            seeds = values["seeds"]
+            values["seeds"] = tuple(seeds) if isinstance(seeds, list) else (seeds,)
+        return cls(**values)
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> GridConfig:
+        try:
+            data = yaml.safe_load(Path(path).read_text())
+        except OSError as error:
+            raise ValueError(f"cannot read the grid file {path}: {error.strerror}") from None
+        except yaml.YAMLError as error:
+            mark = getattr(error, "problem_mark", None)
+            where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+            raise ValueError(f"{path} is not valid YAML{where}: {getattr(error, 'problem', None) or error}") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"{path} must hold a mapping of grid settings (methods, seeds, total_steps, config, out)")
+        return cls.from_dict(data)

@@ -105,6 +105,13 @@ def plot_curves(rows: list[dict[str, Any]], path: Path) -> None:
     plt.close(figure)
 
 
+def write_summary(root: Path, summary: dict[str, Any]) -> None:
+    """ROOT/summary.json (the runs without their curves) and ROOT/learning_curves.png."""
+    plot_curves(summary["runs"], root / CURVES_FILE)
+    runs = [{key: value for key, value in row.items() if key != "curve"} for row in summary["runs"]]
+    (root / SUMMARY_FILE).write_text(json.dumps({**summary, "runs": runs}, indent=2) + "\n")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("root", type=Path, help="folder of <method>/<run>/ training runs")
@@ -116,9 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     if not summary["runs"]:
         print(f"inest-summarise: no training runs under {args.root}/<method>/<run>/", file=sys.stderr)
         return 2
-    plot_curves(summary["runs"], args.root / CURVES_FILE)
-    runs = [{key: value for key, value in row.items() if key != "curve"} for row in summary["runs"]]
-    (args.root / SUMMARY_FILE).write_text(json.dumps({**summary, "runs": runs}, indent=2) + "\n")
+    write_summary(args.root, summary)
     for method, entry in summary["methods"].items():
         low, high = entry["mean_score_ci95"]
         print(

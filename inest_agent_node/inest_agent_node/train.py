@@ -186,7 +186,8 @@ class Trainer:
                 "unique_states": coverage.unique_states,
                 "recorded_every_vector_steps": self.learned_env.record_every,
             }
-        (self.run_dir / RESULTS_FILE).write_text(json.dumps(results, indent=2) + "\n")
+        # whole or not at all: a grid (experiments.py) counts a run with results.json as finished
+        write_atomic(self.run_dir / RESULTS_FILE, lambda path: path.write_text(json.dumps(results, indent=2) + "\n"))
         reference = None
         if config.reward != "env":
             reference = reference_curve(self.run_dir.parent)

@@ -1,0 +1,358 @@
+"""`inest-experiments`: the thesis's experiments as one resumable grid of `inest-train` runs.
+
+`inest-experiments run GRID.yaml [METHOD ...]` trains every method x seed of the grid
+(config.GridConfig; example: config/grid.yaml) in OUT/<method>/seed<N>/, the layout
+`inest-summarise` reads, with the cell's output in OUT/<method>/seed<N>.log. A cell holding
+results.json is finished and skipped; one holding config.json is continued with `--resume`; so
+a grid killed at any point continues where it stopped when the same command runs again.
+OUT/grid.json records the grid and every cell's command and full training config; a cell that
+has a run folder but whose settings have since changed is refused. Each cell is an inest-train
+subprocess on one torch/JAX thread (`--threads 1`): `--parallel N` at a time on this machine
+(the default), or with `--executor ray --address ADDR` Ray tasks of one CPU each on an existing
+Ray cluster (`--address local` starts a private one of N CPUs). Ray workers run the same
+command and write to the same paths, so every node must see the checkout, the virtual
+environment and OUT at the same paths (a shared filesystem). A failed cell is named with its
+log and the others go on; the exit status is 1 if any failed, 2 for bad input. At the end the
+report is written.
+
+`inest-experiments report GRID.yaml|OUT` writes OUT/report.md (per method: mean score with a
+95 % bootstrap interval over seeds, success rate, 0/1/2/3-block shares; per run; cells not
+finished), OUT/summary.json and OUT/learning_curves.png (summary.py). The learned reward's
+error against the environment's reward is not in it: that is `inest-reward-quality`'s report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import ctypes
+import io
+import json
+import shlex
+import signal
+import subprocess
+import sys
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import yaml
+from inest_common.files import read_json, read_run_file, write_atomic
+from inest_common.progress import track
+from inest_reward_node.runs import CONFIG_FILE
+
+from .config import GridConfig
+from .summary import summarise, write_summary
+from .train import RESULTS_FILE, parse_args
+
+GRID_FILE = "grid.json"
+REPORT_FILE = "report.md"
+EXECUTORS = ("local", "ray")
+PR_SET_PDEATHSIG = 1  # prctl(2)
+LIBC = ctypes.CDLL(None) if sys.platform == "linux" else None  # loaded here: the child only calls it
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One method x seed: its run folder and the inest-train flags that train it (without --resume,
+    which is decided when it starts). Paths are absolute, so a Ray worker anywhere finds them."""
+
+    method: str
+    seed: int
+    run_dir: Path
+    train_args: tuple[str, ...]
+    workdir: Path  # the grid's working directory: relative paths in a method's args are read from it
+    settings: dict[str, Any] = field(hash=False, compare=False, repr=False)  # the full TrainConfig
+
+    @property
+    def name(self) -> str:
+        return f"{self.method}/seed{self.seed}"
+
+    @property
+    def log(self) -> Path:
+        return self.run_dir.with_name(f"{self.run_dir.name}.log")
+
+    @property
+    def finished(self) -> bool:
+        return (self.run_dir / RESULTS_FILE).is_file()
+
+
+def train_settings(argv: list[str]) -> dict[str, Any]:
+    """The training config inest-train would run `argv` with; its complaint as one ValueError line."""
+    complaint = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(complaint), contextlib.redirect_stdout(complaint):
+            config, _ = parse_args(argv)
+    except SystemExit:
+        lines = complaint.getvalue().strip().splitlines() or ["not a valid inest-train command"]
+        raise ValueError(lines[-1].split("error: ", 1)[-1]) from None
+    except yaml.YAMLError as error:
+        raise ValueError(" ".join(str(error).split())) from None
+    return json.loads(json.dumps(config.to_dict()))  # as grid.json holds it: tuples as lists
+
+
+def plan(grid: GridConfig, selected: list[str], workdir: Path) -> list[Cell]:
+    """The cells of the `selected` methods (all if none), each checked by parsing its inest-train
+    command, so that a typo fails here and not hours into the grid."""
+    unknown = sorted(set(selected) - set(grid.methods))
+    if unknown:
+        raise ValueError(f"unknown method(s) {unknown}; the grid has {list(grid.methods)}")
+    config = workdir / grid.config
+    if not config.is_file():
+        raise ValueError(f"no training config file at {config} (the grid's `config`)")
+    out = workdir / grid.out
+    cells = []
+    for method in selected or list(grid.methods):
+        spec = grid.methods[method]
+        model_args = ["--model", str(workdir / spec.model)] if spec.model is not None else []
+        for seed in grid.seeds:
+            run_dir = out / method / f"seed{seed}"
+            args = ("--config", str(config), "--out", str(run_dir), "--seed", str(seed), "--threads", "1")
+            args += ("--total-steps", str(grid.total_steps), *model_args, *spec.args)
+            try:
+                settings = train_settings(list(args))
+            except ValueError as error:
+                raise ValueError(f"method {method}: {error}") from None
+            model = settings["model"]  # the grid's, else the training config's
+            if settings["reward"] != "env" and model and not (workdir / model / "model.json").is_file():
+                raise ValueError(f"method {method}: no reward model at {workdir / model} (model.json missing)")
+            cells.append(Cell(method, seed, run_dir, args, workdir, settings))
+    return cells
+
+
+def record_grid(grid: GridConfig, cells: list[Cell], out: Path) -> None:
+    """Write OUT/grid.json, keeping the cells an earlier run of a subset of methods recorded;
+    refuse a cell whose run folder was made with other settings."""
+    path = out / GRID_FILE
+    recorded = read_run_file(path, read_json)["cells"] if path.exists() else {}
+    for cell in cells:
+        before = recorded.get(cell.name)
+        if before is not None and (cell.run_dir / CONFIG_FILE).exists() and before["config"] != cell.settings:
+            differing = sorted(key for key in cell.settings if before["config"].get(key) != cell.settings[key])
+            raise ValueError(
+                f"{cell.run_dir} was trained with other settings ({', '.join(differing)}): "
+                "remove that folder or pick another `out`"
+            )
+        recorded[cell.name] = {"command": ["inest-train", *cell.train_args], "config": cell.settings}
+    document = {"grid": grid.to_dict(), "cells": recorded}
+    out.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, lambda temporary: temporary.write_text(json.dumps(document, indent=2) + "\n"))
+
+
+def die_with_parent() -> None:
+    """In the training process before it starts (Linux): be killed when the runner or Ray worker
+    that started it dies, so that no orphaned run trains on beside the one a rerun resumes."""
+    LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+
+
+def run_cell(cell: Cell) -> int:
+    """Train one cell as an inest-train subprocess (with --resume if it had started), its output
+    appended to its log; the exit status. The same function runs here and in a Ray worker."""
+    resume = ["--resume"] if (cell.run_dir / CONFIG_FILE).exists() else []
+    command = [sys.executable, "-m", "inest_agent_node.train", *cell.train_args, *resume]
+    cell.run_dir.parent.mkdir(parents=True, exist_ok=True)
+    with open(cell.log, "a") as log:
+        log.write(f"# inest-experiments: {shlex.join(command)}\n")
+        log.flush()
+        return subprocess.run(
+            command,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            cwd=cell.workdir,
+            check=False,
+            preexec_fn=die_with_parent if LIBC is not None else None,
+        ).returncode
+
+
+def failure(run: Callable[[], int]) -> str | None:
+    """Why the cell that `run()` waits for failed (its exit status, or what waiting raised), or None."""
+    try:
+        status = run()
+    except Exception as error:  # a cell that could not start or whose Ray task died: report it, go on
+        return f"{type(error).__name__}: {error}".splitlines()[0]
+    return None if status == 0 else f"exit status {status}"
+
+
+def run_local(cells: list[Cell], parallel: int) -> Iterator[tuple[Cell, str | None]]:
+    """Each cell as a subprocess of this process, `parallel` at a time, as they finish."""
+    with ThreadPoolExecutor(max_workers=parallel) as pool:
+        futures = {pool.submit(run_cell, cell): cell for cell in cells}
+        for future in as_completed(futures):
+            yield futures[future], failure(future.result)
+
+
+def run_ray(cells: list[Cell], address: str, parallel: int) -> Iterator[tuple[Cell, str | None]]:
+    """Each cell as a Ray task of one CPU on the cluster at `address` (`local`: a private instance
+    of `parallel` CPUs), as they finish."""
+    import ray
+
+    try:
+        if address == "local":
+            ray.init(address="local", num_cpus=parallel, include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(address=address, log_to_driver=False)
+    except (ConnectionError, RuntimeError) as error:
+        raise ValueError(f"cannot reach the Ray cluster at {address}: {error}".splitlines()[0]) from None
+    try:
+        task = ray.remote(num_cpus=1, max_retries=0)(run_cell)
+        pending = {task.remote(cell): cell for cell in cells}
+        while pending:
+            [done], _ = ray.wait(list(pending), num_returns=1)
+            yield pending.pop(done), failure(partial(ray.get, done))
+    finally:
+        ray.shutdown()
+
+
+def run_grid(grid: GridConfig, selected: list[str], executor: str, address: str | None, parallel: int) -> int:
+    """Train the grid's unfinished cells; 0 if every cell finished, 1 if any failed."""
+    workdir = Path.cwd()
+    cells = plan(grid, selected, workdir)
+    out = workdir / grid.out
+    record_grid(grid, cells, out)
+    pending = [cell for cell in cells if not cell.finished]
+    print(f"{len(cells)} cells, {len(cells) - len(pending)} finished, {len(pending)} to train in {out}", flush=True)
+    results: Iterator[tuple[Cell, str | None]] = iter(())
+    if pending and executor == "ray":
+        results = run_ray(pending, address or "local", parallel)
+    elif pending:
+        results = run_local(pending, parallel)
+    failed = []
+    with track(total=len(pending), unit="cell", desc="grid", disable=not pending) as bar:
+        for cell, problem in results:
+            if problem is None:
+                bar.write(f"finished {cell.name}")
+            else:
+                failed.append(cell)
+                bar.write(f"inest-experiments: {cell.name} failed ({problem}); see {cell.log}")
+            bar.update()
+    if any(cell.finished for cell in cells):
+        print(f"wrote {write_report(out, grid)}")
+    if failed:
+        print(f"inest-experiments: {len(failed)} of {len(pending)} cells failed: {', '.join(c.name for c in failed)}")
+        return 1
+    return 0
+
+
+def format_steps(steps: list[int]) -> str:
+    return ", ".join(f"{step // 1000}k" if step >= 1000 and step % 1000 == 0 else str(step) for step in steps)
+
+
+def percent(share: float) -> str:
+    return f"{100 * share:.0f}"
+
+
+def write_report(out: Path, grid: GridConfig | None) -> Path:
+    """OUT/report.md, summary.json and learning_curves.png from the runs under OUT. Methods in the
+    grid's order (the given one, else OUT/grid.json's, else sorted), those without a finished run too."""
+    if grid is None and (out / GRID_FILE).exists():
+        grid = GridConfig.from_dict(read_run_file(out / GRID_FILE, read_json)["grid"])
+    summary = summarise(out)
+    if not summary["runs"]:
+        raise ValueError(f"no training runs under {out}/<method>/<run>/")
+    write_summary(out, summary)
+    found = sorted({row["method"] for row in summary["runs"]})
+    methods = list(grid.methods) + [m for m in found if m not in grid.methods] if grid else found
+    lines = [
+        f"# Experiment grid: {out}",
+        "",
+        "Final evaluations (each run's `final_eval_episodes` on the evaluation layouts); the mean",
+        "score's 95 % bootstrap interval is over seeds; success: all three blocks in order.",
+        "",
+        "| method | seeds | steps | mean score [95 % CI over seeds] | success | 0 / 1 / 2 / 3 blocks |",
+        "|---|---|---|---|---|---|",
+    ]
+    expected = len(grid.seeds) if grid else None
+    for method in methods:
+        entry = summary["methods"].get(method)
+        seeds = f"{entry['seeds'] if entry else 0}" + (f" of {expected}" if expected else "")
+        if entry is None:
+            lines.append(f"| {method} | {seeds} | | not finished | | |")
+            continue
+        low, high = entry["mean_score_ci95"]
+        blocks = " / ".join(percent(share) for share in entry["blocks_share"])
+        lines.append(
+            f"| {method} | {seeds} | {format_steps(entry['steps'])} | {entry['mean_score']:.3f} [{low:.3f}, {high:.3f}]"
+            f" | {100 * entry['success_rate']:.1f} % | {blocks} % |"
+        )
+    lines += ["", "| run | steps | mean score | success | 0 / 1 / 2 / 3 blocks |", "|---|---|---|---|---|"]
+    for row in sorted(summary["runs"], key=lambda row: (methods.index(row["method"]), row["run"])):
+        name = f"{row['method']}/{row['run']}"
+        if row["final"]:
+            blocks = " / ".join(percent(share) for share in row["blocks_share"])
+            lines.append(
+                f"| {name} | {format_steps([row['steps']])} | {row['mean_score']:.3f}"
+                f" | {100 * row['success_rate']:.1f} % | {blocks} % |"
+            )
+        else:
+            steps = format_steps([row["steps"]])
+            lines.append(f"| {name} (training) | {steps} | {row['mean_score']:.3f} (last evaluation) | | |")
+    if grid:
+        started = {f"{row['method']}/{row['run']}" for row in summary["runs"]}
+        missing = [f"{m}/seed{s}" for m in grid.methods for s in grid.seeds if f"{m}/seed{s}" not in started]
+        if missing:
+            lines += ["", f"Not started, or before their first evaluation: {', '.join(missing)}."]
+    lines += [
+        "",
+        "![learning curves: mean over seeds, band from the lowest to the highest seed](learning_curves.png)",
+        "",
+        "The learned reward's error against the environment's reward (reward quality) is not part of",
+        "this report: `inest-reward-quality MODEL DATASET` measures it for a reward model.",
+    ]
+    (out / REPORT_FILE).write_text("\n".join(lines) + "\n")
+    return out / REPORT_FILE
+
+
+def positive(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """Usage mistakes as one line and exit status 2, like every other bad input here."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"inest-experiments: {message}\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = OneLineParser(
+        prog="inest-experiments", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
+    run = commands.add_parser("run", help="train the grid's unfinished cells, then write the report")
+    run.add_argument("grid", type=Path, help="grid YAML file (inest_agent_node/config/grid.yaml)")
+    run.add_argument("methods", nargs="*", help="only these methods (default: all)")
+    run.add_argument("--parallel", type=positive, default=2, help="cells at a time (ray --address local: its CPUs)")
+    run.add_argument("--executor", choices=EXECUTORS, default="local")
+    run.add_argument("--address", help="the Ray cluster's address (ray start --head prints it), or local")
+    report = commands.add_parser("report", help="write OUT/report.md, summary.json and learning_curves.png")
+    report.add_argument("grid", type=Path, help="grid YAML file, or the grid's OUT folder")
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "report":
+            if args.grid.is_dir():
+                print(f"wrote {write_report(args.grid, None)}")
+            else:
+                grid = GridConfig.from_yaml(args.grid)
+                print(f"wrote {write_report(Path(grid.out), grid)}")
+            return 0
+        if args.address and args.executor != "ray":
+            raise ValueError("--address is for --executor ray")
+        if args.executor == "ray":
+            try:
+                import ray  # noqa: F401  (checked before any cell starts)
+            except ImportError:
+                raise ValueError("--executor ray needs the ray package (pinned in requirements.txt)") from None
+        return run_grid(GridConfig.from_yaml(args.grid), args.methods, args.executor, args.address, args.parallel)
+    except ValueError as error:
+        print(f"inest-experiments: {error}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,215 @@
+"""inest-experiments: a grid of real inest-train runs that survives a kill, Ray tasks, the report."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from inest_agent_node.experiments import main, plan
+from small_training import small_train_config
+from test_summary import write_run
+
+from inest_agent_node.config import GridConfig
+
+ROOT = Path(__file__).resolve().parent.parent
+STEPS = 400  # two evaluations and checkpoints (200, 400): a cell can be caught between them
+HEADER = "# inest-experiments:"
+
+
+def write_grid(root: Path, methods: dict, seeds: list[int], **settings) -> Path:
+    """A grid of tiny runs (small_training's settings, torch SAC, checkpoint and evaluation every
+    200 steps) under root/out."""
+    train = small_train_config(reward="env", learner="sac")
+    (root / "train.yaml").write_text(yaml.safe_dump(train.to_dict()))
+    grid = {"methods": methods, "seeds": seeds, "total_steps": STEPS, "config": str(root / "train.yaml")}
+    path = root / "grid.yaml"
+    path.write_text(yaml.safe_dump(grid | {"out": str(root / "out")} | settings))
+    return path
+
+
+def cell_states(out: Path, cells: list[str]) -> dict[str, str]:
+    """finished (results.json), half (a checkpoint, no results) or other, per cell."""
+
+    def state(run: Path) -> str:
+        if (run / "results.json").exists():
+            return "finished"
+        return "half" if (run / "checkpoint" / "history.json").exists() else "other"
+
+    return {cell: state(out / cell) for cell in cells}
+
+
+def kill_when_half_finished(runner: subprocess.Popen, out: Path, cells: list[str]) -> dict[str, str]:
+    """SIGKILL the runner's process group once one cell is finished and another half-finished,
+    seen with the group stopped so that nothing moves between the look and the kill."""
+    while runner.poll() is None:
+        time.sleep(0.2)
+        if not {"finished", "half"} <= set(cell_states(out, cells).values()):
+            continue
+        os.killpg(runner.pid, signal.SIGSTOP)
+        states = cell_states(out, cells)
+        if {"finished", "half"} <= set(states.values()):
+            os.killpg(runner.pid, signal.SIGKILL)
+            runner.wait()
+            return states
+        os.killpg(runner.pid, signal.SIGCONT)
+    pytest.fail(f"the grid ended (status {runner.returncode}) before a cell was caught half-finished")
+
+
+def test_a_killed_grid_resumes_and_finishes_every_cell_exactly_once(tmp_path, capsys):
+    grid = write_grid(
+        tmp_path, {"oracle": {"args": ["--reward", "env"]}, "bare": {"args": ["--observation", "state"]}}, [0, 1]
+    )
+    out = tmp_path / "out"
+    cells = [f"{method}/seed{seed}" for method in ("oracle", "bare") for seed in (0, 1)]
+    command = [sys.executable, "-m", "inest_agent_node.experiments", "run", str(grid), "--parallel", "1"]
+    with open(tmp_path / "first.log", "w") as log:
+        runner = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        at_kill = kill_when_half_finished(runner, out, cells)
+    finished = [cell for cell, state in at_kill.items() if state == "finished"]
+    halves = [cell for cell, state in at_kill.items() if state == "half"]
+    before = {cell: (out / cell / "results.json").stat().st_mtime_ns for cell in finished}
+    history = {cell: json.loads((out / cell / "checkpoint" / "history.json").read_text()) for cell in halves}
+    assert json.loads((out / "grid.json").read_text())["grid"]["seeds"] == [0, 1]
+
+    assert main(["run", str(grid), "--parallel", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert f"4 cells, {len(finished)} finished, {4 - len(finished)} to train" in printed
+    for cell in cells:
+        results = json.loads((out / cell / "results.json").read_text())
+        assert results["steps"] == STEPS
+        log = (out / f"{cell}.log").read_text()
+        starts = [line for line in log.splitlines() if line.startswith(HEADER)]
+        if cell in finished:  # skipped: trained once, results untouched
+            assert len(starts) == 1 and (out / cell / "results.json").stat().st_mtime_ns == before[cell]
+            assert f"finished {cell}" not in printed
+        elif cell in halves:  # continued from its checkpoint: the step counter and curve go on
+            assert len(starts) == 2 and "--resume" not in starts[0] and starts[1].endswith("--resume")
+            assert results["learning_curve"][: len(history[cell])] == history[cell]
+            assert [point[0] for point in results["learning_curve"]] == [200, 400]
+        else:
+            assert len(starts) == 1
+    report = (out / "report.md").read_text()
+    for method in ("oracle", "bare"):
+        assert any(line.startswith(f"| {method} | 2 of 2 | 400 | ") and " [" in line for line in report.splitlines())
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["methods"]) == {"oracle", "bare"} and (out / "learning_curves.png").exists()
+
+
+def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, capsys):
+    broken = tmp_path / "broken-model"
+    broken.mkdir()
+    (broken / "model.json").write_text("{}")  # passes the grid's check, fails in inest-train
+    methods = {"broken": {"args": ["--reward", "inest"], "model": str(broken)}, "oracle": {"args": ["--reward", "env"]}}
+    grid = write_grid(tmp_path, methods, [0])
+    assert main(["run", str(grid)]) == 1
+    printed = capsys.readouterr().out
+    log = tmp_path / "out" / "broken" / "seed0.log"
+    assert f"broken/seed0 failed (exit status 2); see {log}" in printed and "inest-train:" in log.read_text()
+    assert (tmp_path / "out" / "oracle" / "seed0" / "results.json").exists()
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "| broken | 0 of 1 | | not finished |" in report and "Not started" in report
+
+    methods["oracle"]["args"] += ["--observation", "state"]  # the finished cell's settings changed
+    grid.write_text(yaml.safe_dump(yaml.safe_load(grid.read_text()) | {"methods": methods}))
+    assert main(["run", str(grid), "oracle"]) == 2
+    assert "oracle/seed0 was trained with other settings (observation)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("grid", "extra", "message"),
+    [
+        ("methods: {oracle: {args: [--reward, env]}\n", [], "is not valid YAML at line 2"),
+        ("methods: {oracle: {args: [--reward, env]}}\nsteps: 5\n", [], "unknown grid setting(s) ['steps']"),
+        ("methods: {oracle: {arg: [--reward, env]}}\n", [], "unknown setting(s) of method oracle ['arg']"),
+        ("methods: {oracle: {args: [--reward, env]}}\n", ["inest3"], "unknown method(s) ['inest3']"),
+        ("methods: {oracle: {args: [--reward, envv]}}\n", [], "method oracle: argument --reward: invalid choice"),
+        ("methods: {oracle: {args: [--seed, '4']}}\n", [], "method oracle: the grid sets ['--seed'] itself"),
+        ("methods: {x: {args: [--reward, xirl], model: nowhere}}\n", [], "method x: no reward model at"),
+        ("methods: {x: {args: [--reward, xirl]}}\n", [], "method x: the xirl reward needs a reward model folder"),
+        ("methods: {x: {args: [--reward, xirl]}}\nconfig: t.yaml\n", [], "method x: no reward model at"),
+        ("methods: {oracle: {}}\nseeds: [1, 1]\n", [], "seeds must differ"),
+        ("methods: {oracle: {}}\nout: [a]\n", [], "out must be a path"),
+    ],
+)
+def test_bad_grids_are_one_line_and_exit_2(tmp_path, capsys, monkeypatch, grid, extra, message):
+    monkeypatch.chdir(tmp_path)
+    write_grid(tmp_path, {}, [0])  # the tiny train.yaml
+    train = yaml.safe_load((tmp_path / "train.yaml").read_text())
+    (tmp_path / "t.yaml").write_text(yaml.safe_dump(train | {"model": "nowhere"}))  # a model that is not there
+    (tmp_path / "bad.yaml").write_text(grid if "config:" in grid else grid + "config: train.yaml\n")
+    assert main(["run", "bad.yaml", *extra]) == 2
+    error = capsys.readouterr().err
+    assert message in error and error.count("\n") == 1, error
+    assert not (tmp_path / "runs").exists()
+
+
+def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, capsys):
+    curve = [[100, 0.1, 0.0], [200, 0.2, 0.0], [300, 0.3, 0.0]]
+    write_run(tmp_path, "oracle", 0, 0.8, curve)
+    write_run(tmp_path, "oracle", 1, 0.9, curve)
+    write_run(tmp_path, "oracle", 2, None, curve[:1])
+    assert main(["report", str(tmp_path)]) == 0
+    lines = (tmp_path / "report.md").read_text().splitlines()
+    row = next(line for line in lines if line.startswith("| oracle |"))
+    assert row.startswith("| oracle | 2 | 300 | 0.850 [0.800, 0.900] | 42.5 % | 0 / 0 / 100 / 0 % |")
+    assert "| oracle/seed2 (training) | 100 | 0.100 (last evaluation) | | |" in lines
+    assert (tmp_path / "summary.json").exists() and (tmp_path / "learning_curves.png").exists()
+    grid = tmp_path / "grid.yaml"
+    grid.write_text(f"methods: {{oracle: {{}}, holdr: {{}}}}\nseeds: [0, 1, 2]\nout: {tmp_path}\n")
+    assert main(["report", str(grid)]) == 0
+    report = (tmp_path / "report.md").read_text()
+    assert "| oracle | 2 of 3 |" in report and "| holdr | 0 of 3 | | not finished |" in report
+    assert main(["report", str(tmp_path / "nothing")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_the_shipped_grid_is_the_thesis_grid_and_its_methods_parse(monkeypatch):
+    monkeypatch.chdir(ROOT)
+    grid = GridConfig.from_yaml(ROOT / "inest_agent_node" / "config" / "grid.yaml")
+    assert (grid.seeds, grid.total_steps) == ((0, 1, 2), 500_000)
+    ready = [name for name, method in grid.methods.items() if not method.model or Path(method.model).is_dir()]
+    cells = {cell.name: cell.settings for cell in plan(grid, ready, ROOT)}
+    expected = {  # method: reward, subtasks, intrinsic bonus, camera
+        "inest3-embedding": ("inest", 3, "embedding", "ego"),
+        "inest3-state": ("inest", 3, "state", "ego"),
+        "inest3-none": ("inest", 3, "none", "ego"),
+        "inest6-embedding": ("inest", 6, "embedding", "ego"),
+        "xirl-ego": ("xirl", 3, "none", "ego"),
+        "xirl-allo": ("xirl", 3, "none", "allo"),
+        "holdr": ("holdr", 3, "none", "ego"),
+        "oracle": ("env", 3, "none", "ego"),
+    }
+    assert set(grid.methods) == set(expected)
+    assert {"inest3-embedding", "xirl-ego", "oracle"} <= set(ready)  # the committed model serves these
+    for method in ready:
+        settings = cells[f"{method}/seed2"]
+        shown = (settings["reward"], settings["subtasks"], settings["intrinsic"]["mode"], settings["view"])
+        assert shown == expected[method] and settings["total_steps"] == 500_000 and settings["threads"] == 1
+
+
+@pytest.mark.skipif(importlib.util.find_spec("ray") is None, reason="ray is not installed")
+def test_ray_tasks_train_the_same_cells_into_the_same_layout(tmp_path, capsys, tiny_model):
+    methods = {
+        "oracle": {"args": ["--reward", "env"]},
+        "inest3": {"args": ["--reward", "inest", "--intrinsic", "embedding"], "model": str(tiny_model)},
+    }
+    grid = write_grid(tmp_path, methods, [0])
+    assert main(["run", str(grid), "--executor", "ray", "--address", "local", "--parallel", "2"]) == 0
+    assert "finished oracle/seed0" in capsys.readouterr().out
+    out = tmp_path / "out"
+    for cell in ("oracle/seed0", "inest3/seed0"):
+        assert json.loads((out / cell / "results.json").read_text())["steps"] == STEPS
+        assert (out / f"{cell}.log").read_text().startswith(HEADER)
+    inest = json.loads((out / "inest3" / "seed0" / "results.json").read_text())
+    assert inest["config"]["reward"] == "inest" and inest["config"]["intrinsic"]["mode"] == "embedding"
+    assert "coverage" in inest  # the learned reward's visited embeddings: it really scored frames
+    report = (out / "report.md").read_text()
+    assert "| oracle | 1 of 1 | 400 |" in report and "| inest3 | 1 of 1 | 400 |" in report

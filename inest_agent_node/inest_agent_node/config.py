@@ -21,7 +21,8 @@ from .learners import LEARNERS
 
 LEARNER_NAMES = tuple(LEARNERS)
 
-REWARDS = ("env", "xirl", "holdr", "inest", "topic")  # topic: served by inest_reward_node (graph only)
+REWARDS = ("env", "xirl", "holdr", "reds", "inest", "topic")  # topic: served by inest_reward_node (graph only)
+SUBTASK_REWARDS = ("inest", "reds", "topic")  # the rewards scored with `subtasks` subtasks (the others: 1)
 
 
 def reject_unknown(data: dict[str, Any], known: set[str], what: str) -> None:
@@ -64,9 +65,9 @@ class SacConfig:
 
 @dataclass(frozen=True)
 class TrainConfig:
-    reward: str = "inest"  # env (oracle) | xirl | holdr | inest | topic (the reward node's, over the graph)
+    reward: str = "inest"  # env (oracle) | xirl | holdr | reds | inest | topic (the reward node's, over the graph)
     model: str | None = None  # reward model folder (inest-pretrain's model/); not used by "env"
-    subtasks: int = 3  # inest: 1, 3 or 6
+    subtasks: int = 3  # inest: 1, 3 or 6; reds: the segmentation its model was trained on
     view: str = "ego"
     intrinsic: IntrinsicConfig = field(default_factory=IntrinsicConfig)
     # how the learned reward shapes and tracks subtasks (stages.RewardConfig: shaping, tracker,
@@ -129,10 +130,10 @@ class TrainConfig:
     @property
     def stage_subtasks(self) -> int:
         """Stages the policy's observation distinguishes: the simulator's blocks for the oracle,
-        the learned reward's subtasks otherwise (XIRL and HOLD-R have one goal)."""
+        the learned reward's subtasks otherwise (XIRL and HOLD-R have one goal; REDS infers its own)."""
         if self.reward == "env":
             return NUM_BLOCKS
-        return self.subtasks if self.reward in ("inest", "topic") else 1
+        return self.subtasks if self.reward in SUBTASK_REWARDS else 1
 
     def to_dict(self) -> dict[str, Any]:
         data = asdict(self)

@@ -25,7 +25,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
 
 from inest_sim_node import EnvConfig, SweepToTopEnv
 
-from .config import TrainConfig
+from .config import SUBTASK_REWARDS, TrainConfig
 
 FRAME_KEY = "camera_frame"
 TRUE_PROGRESS = "progress"  # blocks placed in order (the simulator's, 0..3)
@@ -220,7 +220,7 @@ def build_env(
     num_envs = num_envs or config.num_envs
     seed = config.seed if seed is None else seed
     env_config = EnvConfig(view=config.view, reward=config.oracle)
-    reward = config.reward
+    reward = variant = config.reward
     if reward == "topic":
         if not evaluation:
             raise ValueError("the topic reward comes from inest_reward_node: train over the graph (inest-agent-node)")
@@ -229,14 +229,14 @@ def build_env(
                 "the stage observation over the graph needs `model` (the reward node's model), "
                 "so that in-process evaluations track the stage as the reward node does"
             )
-        reward = "inest" if config.subtasks > 1 else "xirl"
+        variant = None  # the model's own variant for `subtasks` (rewards.default_variant), the reward node's default
     if reward == "env" or (evaluation and config.observation == "state"):
         venv = wrap_simulators(make_vec_env(num_envs, env_config, seed))
         return with_observation(venv, config, TRUE_PROGRESS)
-    scheme = config.subtasks if reward == "inest" else 1
+    scheme = config.subtasks if reward in SUBTASK_REWARDS else 1
     model = load_model(config.model, view=config.view, scheme=scheme)
     intrinsic = IntrinsicConfig(mode="none") if evaluation else config.intrinsic
-    scorer = RewardScorer(model, scheme, reward, intrinsic, num_envs, config=config.learned_reward)
+    scorer = RewardScorer(model, scheme, variant, intrinsic, num_envs, config=config.learned_reward)
     venv = wrap_simulators(make_vec_env(num_envs, env_config, seed, (config.view, model.image_size)))
     batch_steps = 1 if evaluation else config.reward_batch_steps
     return with_observation(LearnedRewardVecEnv(venv, scorer, batch_steps=batch_steps), config, LEARNED_STAGE)

@@ -3,8 +3,10 @@ thresholds, per-subtask start distances and embeddings, the stage classifier (fi
 stages.py) and the pixel stage head (stage_head.py), from the training demonstrations and
 random, wrong-order and clip-file play.
 
-`calibrate()` computes all of them for every subtask scheme (TCC: 1, 3 and 6 subtasks; HOLD-R: 1);
-the functions above it are its parts.
+`calibrate()` computes all of them for every subtask scheme (TCC: 1, 3 and 6 subtasks; HOLD-R: 1;
+REDS: the one it was trained on, whose "goals" are its learned subtask embeddings, what its
+subtask inference and the cosine-similarity report compare frames with); the functions above
+it are its parts.
 """
 
 from __future__ import annotations
@@ -177,11 +179,11 @@ def calibrate(
     others = wrong_order_play(config.view, size, config.calibration.wrong_order_episodes)  # classifier only
     others += [clip for path in config.calibration.clips for clip in load_clips(path, config.view, size)]
     other_embeddings = [model.embed(clip.frames) for clip in others]
-    schemes = TCC_SCHEMES if config.method == "tcc" else (1,)
+    schemes = {"tcc": TCC_SCHEMES, "reds": (config.reds.subtasks,)}.get(config.method, (1,))
     result = {}
     for scheme in schemes:
         ends = [demo.ends[scheme] for demo in demos]
-        goals = goal_embeddings(embeddings, ends)
+        goals = model.reds_subtask_embeddings() if config.method == "reds" else goal_embeddings(embeddings, ends)
         partial = SubtaskGoals(goals, [], xirl_distance_scale(embeddings, goals[-1]))
         rewards = [subtask_rewards(model, emb, partial) for emb in embeddings]
         negative_rewards = [subtask_rewards(model, emb, partial) for emb in negatives]

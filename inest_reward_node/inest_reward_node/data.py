@@ -1,4 +1,4 @@
-"""Demonstration frames in memory, batch samplers for the two pretraining objectives, augmentation."""
+"""Demonstration frames in memory, batch samplers for the pretraining objectives, augmentation."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from inest_common.progress import track
 from inest_sim_node.dataset import DemoDataset, Episode
 
 from .encoders import resize_frames
+from .stages import demo_stages
 
 
 @dataclass
@@ -83,6 +84,64 @@ def sample_goal_pairs(
         goals.append(demo.frames[goal])
         gaps.append(goal - start)
     return np.stack(starts), np.stack(goals), np.asarray(gaps, dtype=np.float32)
+
+
+@dataclass
+class RedsBatch:
+    """REDS training frames: anchors, each one's later frame (the progressive regulariser) and its
+    EPIC canonicalisation frames; per frame the subtask label it is conditioned on (0..K-1) and its
+    ground-truth segmentation reward (subtasks completed on it, 0..K)."""
+
+    frames: np.ndarray  # (B, S, S, 3) uint8
+    labels: np.ndarray  # (B,) int64
+    targets: np.ndarray  # (B,) float32
+    next_frames: np.ndarray  # (B, S, S, 3)
+    next_labels: np.ndarray  # (B,)
+    canonical_frames: np.ndarray  # (B, C, S, S, 3), C canonicalisation frames per anchor
+    canonical_labels: np.ndarray  # (B, C)
+    canonical_targets: np.ndarray  # (B, C)
+
+
+def segmentation(demo: Demo, scheme: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame: the subtask label (what REDS conditions on) and the subtasks completed (its reward)."""
+    labels = np.asarray(demo.labels[scheme], dtype=np.int64)
+    return labels, demo_stages(demo.progress, labels, scheme).astype(np.float32)
+
+
+def sample_reds_batch(
+    demos: list[Demo], scheme: int, frames: int, canonical: int, next_max_gap: int, rng: np.random.Generator
+) -> RedsBatch:
+    """Anchors uniform over demonstrations and their frames; the later frame 1 .. next_max_gap - 1
+    steps on (clipped to the last frame); the canonicalisation frames uniform over all demonstrations."""
+    segments = [segmentation(demo, scheme) for demo in demos]
+
+    def draw(count: int) -> tuple[np.ndarray, np.ndarray]:
+        chosen = rng.integers(len(demos), size=count)
+        return chosen, np.array([int(rng.integers(len(demos[d]))) for d in chosen], dtype=np.int64)
+
+    anchors, times = draw(frames)
+    later = np.minimum(times + rng.integers(1, next_max_gap, size=frames), [len(demos[d]) - 1 for d in anchors])
+    others, other_times = draw(frames * canonical)
+
+    def gather(chosen: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        images = np.stack([demos[d].frames[t] for d, t in zip(chosen, at, strict=True)])
+        labels = np.array([segments[d][0][t] for d, t in zip(chosen, at, strict=True)], dtype=np.int64)
+        targets = np.array([segments[d][1][t] for d, t in zip(chosen, at, strict=True)], dtype=np.float32)
+        return images, labels, targets
+
+    images, labels, targets = gather(anchors, times)
+    next_images, next_labels, _ = gather(anchors, later)
+    canonical_images, canonical_labels, canonical_targets = gather(others, other_times)
+    return RedsBatch(
+        images,
+        labels,
+        targets,
+        next_images,
+        next_labels,
+        canonical_images.reshape(frames, canonical, *canonical_images.shape[1:]),
+        canonical_labels.reshape(frames, canonical),
+        canonical_targets.reshape(frames, canonical),
+    )
 
 
 @dataclass(frozen=True)

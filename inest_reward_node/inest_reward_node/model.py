@@ -1,8 +1,9 @@
 """Trained reward models on disk and in memory.
 
 A model folder holds `weights.safetensors` (tensors only, nothing executable) and
-`model.json`: method, encoder config, input size, camera view, hash of the training
-dataset, and per subtask scheme the goal embeddings, XIRL distance scale, completion
+`model.json`: method, encoder config, the baselines' network settings (`holdr`, `reds`),
+input size, camera view, hash of the training dataset, and per subtask scheme the goal
+embeddings (REDS: its learned subtask embeddings), XIRL distance scale, completion
 thresholds, the raw distance to each goal where its subtask starts (`start_distances`, for
 progress shaping), the mean embedding where each subtask starts (`start_embeddings`, for
 segment shaping and reopening), the stage classifier (`stage_classifier`, see stages.py) and
@@ -29,6 +30,7 @@ from torch.fx.experimental.optimization import fuse
 
 from .encoders import EncoderConfig, build_encoder, frames_to_tensor, resize_frames
 from .holdr import HoldR, HoldRConfig
+from .reds import Reds, RedsConfig, infer_subtasks
 from .shaping import ShapingConfig
 from .stage_head import WEIGHTS_FILE as STAGE_HEADS_FILE
 from .stage_head import StageHead
@@ -38,19 +40,23 @@ MODEL_FORMAT = "inest-reward-model"
 MODEL_FORMAT_VERSION = 1
 WEIGHTS_FILE = "weights.safetensors"
 MODEL_FILE = "model.json"
-METHODS = ("tcc", "holdr")
+METHODS = ("tcc", "holdr", "reds")
 
 
 class ModelError(RuntimeError):
     """A model folder is missing, corrupt, or does not match what the caller needs."""
 
 
-def build_network(method: str, encoder: EncoderConfig, holdr: HoldRConfig | None = None) -> nn.Module:
+def build_network(
+    method: str, encoder: EncoderConfig, holdr: HoldRConfig | None = None, reds: RedsConfig | None = None
+) -> nn.Module:
     if method == "tcc":
         return build_encoder(encoder)
     if method == "holdr":
         network = HoldR(holdr or HoldRConfig(), encoder.image_size)
         return network.to(memory_format=torch.channels_last) if encoder.channels_last else network
+    if method == "reds":
+        return Reds(reds or RedsConfig(), encoder)
     raise ValueError(f"unknown method {method!r}; expected one of {METHODS}")
 
 
@@ -148,6 +154,7 @@ class ModelMetadata:
     shaping: ShapingConfig
     subtasks: dict[int, SubtaskGoals]  # per subtask scheme
     holdr: HoldRConfig | None = None
+    reds: RedsConfig | None = None
     dataset: dict[str, Any] = field(default_factory=dict)
     training: dict[str, Any] = field(default_factory=dict)
     calibration: dict[str, Any] = field(default_factory=dict)
@@ -161,6 +168,7 @@ class ModelMetadata:
             shaping=ShapingConfig(**data["shaping"]),
             subtasks={int(scheme): SubtaskGoals.from_dict(goals) for scheme, goals in data["subtasks"].items()},
             holdr=HoldRConfig(**data["holdr"]) if data.get("holdr") else None,
+            reds=RedsConfig(**data["reds"]) if data.get("reds") else None,
             dataset=data.get("dataset", {}),
             training=data.get("training", {}),
             calibration=data.get("calibration", {}),
@@ -173,6 +181,7 @@ class ModelMetadata:
             "view": self.view,
             "encoder": self.encoder.to_dict(),
             "holdr": None if self.holdr is None else self.holdr.to_dict(),
+            "reds": None if self.reds is None else self.reds.to_dict(),
             "dataset": self.dataset,
             "training": self.training,
             "shaping": self.shaping.to_dict(),
@@ -231,6 +240,33 @@ class RewardModel:
             self._steps_at_goal[key] = float(self.holdr_steps(goal[None], goal)[0])
         return self._steps_at_goal[key]
 
+    def require_reds(self, what: str) -> None:
+        if self.method != "reds":
+            raise ModelError(f"{what} need a reds model, this one is {self.method}")
+
+    @torch.inference_mode()
+    def reds_rewards(self, embeddings: np.ndarray, subtask_embeddings: np.ndarray) -> np.ndarray:
+        """(N, K): REDS's reward R(frame, z_k) of each embedded frame for every subtask embedding."""
+        self.require_reds("REDS rewards")
+        frames = torch.as_tensor(np.asarray(embeddings), dtype=torch.float32)
+        columns = [
+            self.network.reward(frames, torch.as_tensor(z, dtype=torch.float32).expand_as(frames))
+            for z in np.asarray(subtask_embeddings)
+        ]
+        return torch.stack(columns, dim=1).numpy() if len(frames) else np.zeros((0, len(subtask_embeddings)))
+
+    def reds_subtasks(self, embeddings: np.ndarray, subtask_embeddings: np.ndarray) -> np.ndarray:
+        """(N,): the subtask each embedded frame is in, as REDS infers it (reds.infer_subtasks)."""
+        self.require_reds("REDS subtasks")
+        if not len(embeddings):
+            return np.zeros(0, dtype=np.int64)
+        return infer_subtasks(embeddings, subtask_embeddings, self.network.config.subtask_bias)
+
+    def reds_subtask_embeddings(self) -> np.ndarray:
+        """(K, D): REDS's learned subtask embeddings (calibration copies them into the goals)."""
+        self.require_reds("REDS subtask embeddings")
+        return self.network.subtask_embeddings.detach().cpu().numpy().astype(np.float32)
+
 
 def save_model(folder: str | Path, network: nn.Module, metadata: ModelMetadata) -> None:
     """Weights first, then the JSON that makes the folder loadable, each by atomic rename."""
@@ -280,7 +316,9 @@ def load_model(
     folder = Path(folder)
     metadata = read_model_metadata(folder)
     check_expectations(metadata, folder, view, image_size, scheme)
-    network = build_network(metadata.method, metadata.encoder, metadata.holdr)
+    if metadata.method == "reds" and metadata.reds is None:
+        raise ModelError(f"{folder / MODEL_FILE} is a reds model without its `reds` network settings")
+    network = build_network(metadata.method, metadata.encoder, metadata.holdr, metadata.reds)
     try:
         network.load_state_dict(load_file(str(folder / WEIGHTS_FILE)))
     except (FileNotFoundError, SafetensorError, RuntimeError) as error:

@@ -48,7 +48,7 @@ from .stages import RewardConfig
 class RewardNodeConfig:
     model: str = "runs/pretrain-main/model"  # a pretraining run's model/ folder
     subtasks: int = 3
-    variant: str = ""  # inest | xirl | holdr; empty: the model's natural one for `subtasks`
+    variant: str = ""  # inest | xirl | holdr | reds; empty: the model's natural one for `subtasks`
     streams: tuple[str, ...] = ("",)  # namespaces of the image sources, e.g. ["sim0", "sim1"]
     image_topic: str = "camera/ego/image_raw"
     max_batch: int = 32  # frames per forward pass at most

@@ -1,7 +1,8 @@
 """Pretraining objectives, one class per representation method (XIRL's trainer-per-loss layout).
 
 `TCCObjective` trains a frame encoder with Temporal Cycle-Consistency (INEST-IRL and XIRL);
-`HoldRObjective` regresses the step gap between a frame and a later goal frame (HOLD-R).
+`HoldRObjective` regresses the step gap between a frame and a later goal frame (HOLD-R);
+`RedsObjective` trains REDS's subtask-conditioned reward (EPIC, progressive regulariser, contrastive).
 `OBJECTIVES` maps a `--method` name to its class; the Pretrainer (pretrain.py) only calls `loss`.
 """
 
@@ -12,8 +13,9 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 import torch
 
-from .data import Demo, augment_videos, sample_goal_pairs, sample_tcc_batch
+from .data import Demo, augment_videos, sample_goal_pairs, sample_reds_batch, sample_tcc_batch
 from .encoders import frames_to_tensor
+from .reds import pearson_distance, supervised_contrastive_loss
 from .tcc import tcc_loss
 
 if TYPE_CHECKING:
@@ -51,7 +53,7 @@ class Objective:
 class TCCObjective(Objective):
     """TCC over `videos_per_batch` clips of `frames_per_video` frames, all ordered pairs of them."""
 
-    unused_settings = frozenset({"holdr", "pairs_per_batch"})
+    unused_settings = frozenset({"holdr", "reds", "pairs_per_batch"})
 
     @classmethod
     def check_config(cls, config: PretrainConfig) -> None:
@@ -69,7 +71,7 @@ class HoldRObjective(Objective):
     """MSE between HOLD-R's predicted and the true step gap of `pairs_per_batch` (frame, goal) pairs,
     in units of `holdr.steps_unit`."""
 
-    unused_settings = frozenset({"videos_per_batch", "frames_per_video", "temperature"})
+    unused_settings = frozenset({"reds", "videos_per_batch", "frames_per_video", "temperature"})
 
     def loss(self, demos: list[Demo], rng: np.random.Generator, generator: torch.Generator) -> torch.Tensor:
         config = self.config
@@ -79,4 +81,40 @@ class HoldRObjective(Objective):
         return torch.nn.functional.mse_loss(predicted, torch.from_numpy(gaps) / config.holdr.steps_unit)
 
 
-OBJECTIVES: dict[str, type[Objective]] = {"tcc": TCCObjective, "holdr": HoldRObjective}
+class RedsObjective(Objective):
+    """REDS (no CLIP, reds.py): per batch of `reds.frames_per_batch` anchor frames,
+    epic_weight x (EPIC Pearson distance + regulariser_weight x progressive hinge)
+    + contrastive_weight x SupCon of the frames' features and their subtasks' embeddings.
+    Every frame is augmented on its own (a one-frame clip)."""
+
+    unused_settings = frozenset({"holdr", "videos_per_batch", "frames_per_video", "pairs_per_batch", "temperature"})
+
+    def embed_frames(self, frames: np.ndarray, generator: torch.Generator) -> torch.Tensor:
+        """uint8 (N, S, S, 3) -> augmented (N, D) features."""
+        return self.embed_clips(frames[:, None], generator)[:, 0]
+
+    def loss(self, demos: list[Demo], rng: np.random.Generator, generator: torch.Generator) -> torch.Tensor:
+        reds = self.config.reds
+        batch = sample_reds_batch(
+            demos, reds.subtasks, reds.frames_per_batch, reds.canonical_samples, reds.next_max_gap, rng
+        )
+        count, canonical = batch.canonical_labels.shape
+        others = batch.canonical_frames.reshape(-1, *batch.frames.shape[1:])
+        features = self.embed_frames(np.concatenate([batch.frames, batch.next_frames, others]), generator)
+        anchor, later, others = features[:count], features[count : 2 * count], features[2 * count :]
+        subtasks = self.network.subtask_embeddings
+        labels = torch.from_numpy(batch.labels)
+        reward = self.network.reward(anchor, subtasks[labels])
+        canonical_reward = self.network.reward(others, subtasks[torch.from_numpy(batch.canonical_labels.reshape(-1))])
+        learned = reward - canonical_reward.view(count, canonical).mean(dim=1)
+        truth = torch.from_numpy(batch.targets - batch.canonical_targets.mean(axis=1))
+        epic = pearson_distance(learned, truth)
+        later_reward = self.network.reward(later, subtasks[torch.from_numpy(batch.next_labels)])
+        regulariser = torch.relu(reds.regulariser_margin - later_reward + reward).sum()
+        contrastive = supervised_contrastive_loss(
+            torch.cat([anchor, subtasks[labels]]), torch.cat([labels, labels]), reds.temperature
+        )
+        return reds.epic_weight * (epic + reds.regulariser_weight * regulariser) + reds.contrastive_weight * contrastive
+
+
+OBJECTIVES: dict[str, type[Objective]] = {"tcc": TCCObjective, "holdr": HoldRObjective, "reds": RedsObjective}

@@ -2,9 +2,12 @@
 
 `--method tcc` trains the frame encoder with Temporal Cycle-Consistency (INEST-IRL and XIRL
 share it: they differ only in their goal embeddings); `--method holdr` trains the HOLD-R
-baseline. Afterwards the goal embeddings, thresholds, start distances and stage classifier for
-1, 3 and 6 subtasks (HOLD-R: 1) are computed from the training demonstrations (and random and
-wrong-order play) and the model folder is written; `--resume` on a finished run recalibrates.
+baseline, `--method reds` the REDS baseline without CLIP (reds.py; `--reds-subtasks`, default
+3, is the segmentation it conditions on). Afterwards the goal embeddings (REDS: its learned
+subtask embeddings), thresholds, start distances and stage classifier for 1, 3 and 6 subtasks
+(HOLD-R: 1; REDS: its own segmentation) are computed from the training demonstrations (and
+random and wrong-order play) and the model folder is written; `--resume` on a finished run
+recalibrates.
 (Each method's loss lives in objectives.py, calibration in calibrate.py; this module holds the
 configuration, the training loop and the command line.)
 
@@ -36,6 +39,7 @@ from .encoders import ENCODER_KINDS, EncoderConfig
 from .holdr import HoldRConfig
 from .model import METHODS, ModelMetadata, RewardModel, SubtaskGoals, build_network, load_model, save_model
 from .objectives import OBJECTIVES
+from .reds import RedsConfig
 from .runs import prepare_run_dir
 from .shaping import ShapingConfig
 
@@ -50,6 +54,7 @@ class PretrainConfig:
     view: str = "ego"
     encoder: EncoderConfig = field(default_factory=EncoderConfig)
     holdr: HoldRConfig = field(default_factory=HoldRConfig)
+    reds: RedsConfig = field(default_factory=RedsConfig)  # REDS: network, batch and loss settings
     iterations: int = 1500
     videos_per_batch: int = 8  # TCC: videos per batch, all ordered pairs used
     frames_per_video: int = 32
@@ -102,6 +107,7 @@ def model_metadata(config: PretrainConfig, iterations_done: int, subtasks: dict[
         shaping=config.shaping,
         subtasks=subtasks,
         holdr=config.holdr if config.method == "holdr" else None,
+        reds=config.reds if config.method == "reds" else None,
         dataset={"path": str(config.dataset), "sha256": dataset_hash(config.dataset)},
         training={"iterations": iterations_done, "config": config.to_dict()},
         calibration=config.calibration.to_dict(),
@@ -132,7 +138,7 @@ class Pretrainer:
         self.run_dir = Path(run_dir)
         self.check_run_dir(resume)
         torch.manual_seed(config.seed)
-        self.network = build_network(config.method, config.encoder, config.holdr)
+        self.network = build_network(config.method, config.encoder, config.holdr, config.reds)
         self.optimizer = torch.optim.AdamW(
             self.network.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay
         )
@@ -295,6 +301,25 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         default=defaults.calibration.stage_head.iterations,
         help="training iterations of the pixel stage head (stage_head.py); 0: none",
     )
+    parser.add_argument(
+        "--reds-subtasks",
+        type=int,
+        choices=(1, 3, 6),
+        default=defaults.reds.subtasks,
+        help="reds: the subtask segmentation it is trained on and conditions on (default %(default)s)",
+    )
+    parser.add_argument(
+        "--reds-frames-per-batch",
+        type=int,
+        default=defaults.reds.frames_per_batch,
+        help="reds: anchor frames per batch, each with its later frame and canonicalisation frames",
+    )
+    parser.add_argument(
+        "--reds-canonical-samples",
+        type=int,
+        default=defaults.reds.canonical_samples,
+        help="reds: EPIC canonicalisation frames per anchor (default %(default)s)",
+    )
     parser.add_argument("--no-augment", action="store_true")
     args = parser.parse_args(argv)
     config = dataclasses.replace(
@@ -306,6 +331,12 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
             kind=args.encoder, image_size=args.image_size, embedding_dim=args.embedding_dim, widths=args.widths
         ),
         learning_rate=args.learning_rate,
+        reds=dataclasses.replace(
+            defaults.reds,
+            subtasks=args.reds_subtasks,
+            frames_per_batch=args.reds_frames_per_batch,
+            canonical_samples=args.reds_canonical_samples,
+        ),
         augment=dataclasses.replace(defaults.augment, enabled=not args.no_augment),
         shaping=dataclasses.replace(defaults.shaping, hold_steps=args.hold_steps),
         calibration=dataclasses.replace(

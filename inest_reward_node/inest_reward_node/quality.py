@@ -1,7 +1,8 @@
 """Reward quality of a trained model on held-out demonstrations (`inest-reward-quality`, thesis 5.3).
 
 Per subtask scheme the model has (its default reward: xirl for 1 subtask, inest for 3 and 6,
-holdr for HOLD-R models), over the validation demonstrations:
+holdr for HOLD-R models, reds for REDS models on their own segmentation; a REDS model's
+"goal embeddings" are its subtask embeddings), over the validation demonstrations:
 - reward vs environment: both per-frame traces are min-max normalised to [0, 1] within each
   demonstration (the learned and the oracle reward live on unrelated scales; only the shape
   is comparable), then MSE, MAE and bias = mean(learned - env) are averaged over demonstrations.

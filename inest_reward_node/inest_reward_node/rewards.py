@@ -1,11 +1,13 @@
 """Per-frame learned rewards of the three methods, and replaying a frame sequence through the tracker.
 
-Each reward variant (inest, xirl, holdr) is one class in `REWARDS`, chosen once by name: what the
+Each reward variant (inest, xirl, holdr, reds) is one class in `REWARDS`, chosen once by name: what the
 scorer calls per batch of embeddings, in the manner of the `imitation` library's reward functions.
 Which subtask a frame is in comes from `RewardConfig.tracker` (the thesis's threshold counter,
 the same with reopening, or the learned stage classifier) or, as a diagnostic only, from the
-simulator's true progress (`stage_source="privileged"`). Completion thresholds live on each
-method's own per-subtask reward: r(d) for TCC models, the HOLD-R reward for HOLD-R models.
+simulator's true progress (`stage_source="privileged"`); a variant that infers the subtask itself
+(reds: `infers_stage`) replaces the tracker with its own inference. Completion thresholds live on
+each method's own per-subtask reward: r(d) for TCC models, the HOLD-R reward for HOLD-R models,
+R(frame, z_k) for REDS models (calibrated like the others, used only by a tracker on request).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from .shaping import SubtaskTracker, distance_reward
 from .stages import (
     ClassifierTracker,
     ConfirmedTracker,
+    InferredStage,
     PrivilegedStage,
     ReopeningTracker,
     RewardConfig,
@@ -33,8 +36,8 @@ THESIS_REWARD = RewardConfig(shaping="thesis", tracker="threshold")  # the rewar
 
 
 def default_variant(model: RewardModel, scheme: int) -> str:
-    if model.method == "holdr":
-        return "holdr"
+    if model.method in ("holdr", "reds"):
+        return model.method
     return "xirl" if scheme == 1 else "inest"
 
 
@@ -73,6 +76,7 @@ class LearnedReward:
     name: str
     method = "tcc"  # the kind of model the variant needs
     uses_segments = False  # whether `distance` needs each frame's segment closeness
+    infers_stage = False  # whether the variant says which subtask a frame is in (`inferred_stages`)
     bonus = 0.0
 
     def __init__(self, model: RewardModel, goals: SubtaskGoals, config: RewardConfig) -> None:
@@ -89,6 +93,10 @@ class LearnedReward:
         return distance_reward(goal_distances(embeddings, goals) * inest_distance_unit(model, goals), model.shaping)
 
     def distance(self, batch: Batch) -> np.ndarray:
+        raise NotImplementedError
+
+    def inferred_stages(self, embeddings: np.ndarray) -> np.ndarray:
+        """(N,) the subtask each frame is in, for a variant that `infers_stage`."""
         raise NotImplementedError
 
 
@@ -162,7 +170,31 @@ class HoldrReward(LearnedReward):
         return batch.per_subtask[:, -1].astype(np.float64)
 
 
-REWARDS: dict[str, type[LearnedReward]] = {reward.name: reward for reward in (InestReward, XirlReward, HoldrReward)}
+class RedsReward(LearnedReward):
+    """REDS (no CLIP, reds.py): R(frame, z_k) for the subtask k the frame is in, k inferred by REDS
+    itself on every frame (the subtask embedding most cosine-similar to the frame's feature, biased
+    towards earlier subtasks); no bonus. The trackers of RewardConfig are not used: REDS needs
+    "no thresholds or distance calculations" (thesis 5.2.4), so the stage the scorer reports is
+    the inferred subtask. With stage_source "privileged" (a diagnostic) the true subtask is used."""
+
+    name = "reds"
+    method = "reds"
+    infers_stage = True
+
+    @staticmethod
+    def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:
+        return model.reds_rewards(embeddings, goals.goals)
+
+    def distance(self, batch: Batch) -> np.ndarray:
+        return batch.per_subtask[np.arange(len(batch.after)), batch.after].astype(np.float64)
+
+    def inferred_stages(self, embeddings: np.ndarray) -> np.ndarray:
+        return self.model.reds_subtasks(embeddings, self.goals.goals)
+
+
+REWARDS: dict[str, type[LearnedReward]] = {
+    reward.name: reward for reward in (InestReward, XirlReward, HoldrReward, RedsReward)
+}
 
 
 def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:
@@ -223,13 +255,16 @@ class RewardScorer:
                 f"schemes only, not {scheme}"
             )
         self.reward = REWARDS[self.variant](model, self.goals, config)
+        # the variant's own subtask inference replaces the tracker (not the privileged diagnostic)
+        self.infers_stage = self.reward.infers_stage and config.stage_source == "tracker"
+        tracks = not self.infers_stage
         self.start_embeddings = None
-        if self.reward.uses_segments or config.reopens:
+        if self.reward.uses_segments or (config.reopens and tracks):
             self.start_embeddings = self.goals.require_start_embeddings()
         self.classifier = self.stage_head = None
-        if config.uses_classifier and config.stage_evidence == "pixels":
+        if tracks and config.uses_classifier and config.stage_evidence == "pixels":
             self.stage_head = self.goals.require_stage_head()
-        elif config.uses_classifier:
+        elif tracks and config.uses_classifier:
             self.classifier = self.goals.require_stage_classifier()
         stage_model = self.classifier or self.stage_head
         if stage_model is not None and stage_model.num_stages != self.num_subtasks + 1:
@@ -245,6 +280,8 @@ class RewardScorer:
         config, thresholds = self.config, self.goals.thresholds
         if config.stage_source == "privileged":
             return PrivilegedStage(len(thresholds))
+        if self.infers_stage:
+            return InferredStage(len(thresholds))
         if config.tracker == "classifier":
             return ClassifierTracker(len(thresholds), self.hold_steps, config.stage_confidence)
         if config.tracker == "confirmed":
@@ -341,6 +378,8 @@ class RewardScorer:
                 raise ValueError("the pixel stage head's tracker needs every frame's stage_evidence (score_frames)")
             at_least = stage_evidence
         true_stage = privileged_stages(states, self.scheme) if config.stage_source == "privileged" else None
+        if self.infers_stage:
+            true_stage = self.reward.inferred_stages(embeddings)  # what the variant's InferredStage trackers take
         if true_stage is not None and len(true_stage) != len(envs):
             raise ValueError(f"expected one state vector per frame ({len(envs)}), got {len(true_stage)}")
         count = len(envs)

@@ -330,6 +330,11 @@ class PrivilegedStage(StageTracker):
         return change
 
 
+class InferredStage(PrivilegedStage):
+    """The stage the reward infers on each frame by itself (REDS: the subtask most similar to the
+    frame, reds.infer_subtasks), no hold and no latch: its frames are in subtask k = `completed`."""
+
+
 class ReopeningTracker(StageTracker):
     """The thesis's threshold test for completing (r(d) to the current goal >= its threshold for
     `hold_steps` frames), plus reopening: the last completed subtask c - 1 counts as undone once,

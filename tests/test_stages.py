@@ -314,7 +314,7 @@ class FakeNode:
     def __init__(self, overrides: dict) -> None:
         self.overrides, self.declared = overrides, {}
 
-    def declare_parameter(self, name, default):
+    def declare_parameter(self, name, default, descriptor=None):
         self.declared[name] = default
         return type("Parameter", (), {"value": self.overrides.get(name, default)})()
 

@@ -106,7 +106,9 @@ class GraphVecEnv(VecEnv):
     # --- VecEnv --------------------------------------------------------------------------
     def reset_env(self, index: int, seed: int | None) -> np.ndarray:
         if self.learned_reward:
-            self.call(self.reward_resets[index], Trigger.Request(), "reward tracker reset")
+            # asked again on every timeout: a reward node killed mid-call never answers, its successor
+            # never saw the request, and a second reset before the episode's first frame changes nothing
+            self.call(self.reward_resets[index], Trigger.Request(), "reward tracker reset", lambda: True)
         request = ResetEpisode.Request(seed=-1 if seed is None else seed)
         response = self.call(self.sim_resets[index], request, "reset", lambda: self.restarted(index))
         if not response.success:

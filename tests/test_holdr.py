@@ -34,6 +34,8 @@ def holdr_model_dir(tiny_demos, tmp_path_factory):
         "10",
         "--learning-rate",
         "0.001",
+        "--stage-head-iterations",
+        "0",
     ]
     run = subprocess.run(
         command, capture_output=True, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"}, check=False

@@ -89,7 +89,12 @@ def main() -> None:
             } | {
                 "graph": Trainer(
                     TrainConfig(
-                        reward="topic", intrinsic=IntrinsicConfig(mode="none"), sac=sac, threads=GRAPH_THREADS, **common
+                        reward="topic",
+                        model=model,  # the stage observation's in-process evaluations track the stage with it
+                        intrinsic=IntrinsicConfig(mode="none"),
+                        sac=sac,
+                        threads=GRAPH_THREADS,
+                        **common,
                     ),
                     f"{root}/graph",
                     progress_bar=False,

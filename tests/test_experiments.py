@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import os
@@ -136,6 +137,7 @@ def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, caps
         ("methods: {x: {args: [--reward, xirl]}}\n", [], "method x: the xirl reward needs a reward model folder"),
         ("methods: {x: {args: [--reward, xirl]}}\nconfig: t.yaml\n", [], "method x: no reward model at"),
         ("methods: {oracle: {}}\nseeds: [1, 1]\n", [], "seeds must differ"),
+        ("methods: {oracle: {}}\ndemos: nowhere\n", [], "no demonstration dataset at"),
         ("methods: {oracle: {}}\nout: [a]\n", [], "out must be a path"),
     ],
 )
@@ -171,9 +173,47 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     assert capsys.readouterr().err.count("\n") == 1
 
 
+def test_report_scores_each_learned_reward_on_the_grids_demonstrations(tmp_path, capsys, tiny_model, tiny_demos):
+    curve = [[100, 0.1, 0.0]]
+    runs = {
+        "oracle": small_train_config(reward="env"),
+        "inest3": small_train_config(reward="inest", model=str(tiny_model)),
+    }
+    for method, config in runs.items():
+        write_run(tmp_path, method, 0, 0.5, curve)
+        (tmp_path / method / "seed0" / "config.json").write_text(json.dumps(config.to_dict()))
+    grid = tmp_path / "grid.yaml"
+    grid.write_text(
+        yaml.safe_dump(
+            {"methods": {"oracle": {}, "inest3": {}}, "seeds": [0], "out": str(tmp_path), "demos": str(tiny_demos)}
+        )
+    )
+    assert main(["report", str(grid)]) == 0
+    lines = (tmp_path / "report.md").read_text().splitlines()
+    row = next(line for line in lines if line.startswith("| inest3 | inest | 3 | 2 |"))
+    mse, mae = (float(cell) for cell in row.split("|")[5:7])
+    assert 0 < mse <= mae < 1  # min-max normalised rewards: |error| <= 1, so MSE <= MAE
+    assert not any(line.startswith("| oracle | env") for line in lines)  # the oracle has no learned reward
+    report = tmp_path / "inest3" / "quality" / "report.json"
+    kept = report.stat().st_mtime_ns
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["reward_quality"]["inest3"]["reward_mse"] == pytest.approx(mse, abs=1e-4)
+    assert main(["report", str(grid)]) == 0 and report.stat().st_mtime_ns == kept  # kept, not scored again
+    (tmp_path / "inest3" / "quality").rename(tmp_path / "scored")
+    (tmp_path / "inest3" / "seed0" / "config.json").write_text(
+        json.dumps(small_train_config(reward="inest", model=str(tmp_path / "gone")).to_dict())
+    )
+    capsys.readouterr()
+    assert main(["report", str(grid)]) == 2
+    error = capsys.readouterr().err
+    assert "reward quality of inest3" in error and error.count("\n") == 1, error
+
+
 def test_the_shipped_grid_is_the_thesis_grid_and_its_methods_parse(monkeypatch):
     monkeypatch.chdir(ROOT)
     grid = GridConfig.from_yaml(ROOT / "inest_agent_node" / "config" / "grid.yaml")
+    assert grid.demos == "runs/demos"
+    grid = dataclasses.replace(grid, demos=None)  # the user's dataset, which plan checks is there
     assert (grid.seeds, grid.total_steps) == ((0, 1, 2), 500_000)
     ready = [name for name, method in grid.methods.items() if not method.model or Path(method.model).is_dir()]
     cells = {cell.name: cell.settings for cell in plan(grid, ready, ROOT)}
@@ -185,6 +225,7 @@ def test_the_shipped_grid_is_the_thesis_grid_and_its_methods_parse(monkeypatch):
         "xirl-ego": ("xirl", 3, "none", "ego"),
         "xirl-allo": ("xirl", 3, "none", "allo"),
         "holdr": ("holdr", 3, "none", "ego"),
+        "reds": ("reds", 3, "none", "ego"),
         "oracle": ("env", 3, "none", "ego"),
     }
     assert set(grid.methods) == set(expected)

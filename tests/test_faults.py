@@ -5,6 +5,7 @@ checkpoint the agent and stop every process cleanly; a restarted simulator is re
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import json
 import os
 import re
@@ -13,7 +14,9 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
+import ament_index_python.packages
 import pytest
 import rclpy
 import yaml
@@ -134,6 +137,52 @@ def test_the_supervisor_restarts_with_back_off_and_stops_a_node_that_keeps_dying
     refusing = supervise("reward", 2, RespawnPolicy(delay=0.05))
     assert refusing.outcome == Outcome(2, "reward refused its configuration: run of reward")  # never restarted
     assert supervise("agent", 0, RespawnPolicy()).outcome == Outcome(0, "")  # the run is over
+
+
+def test_the_ros_launch_file_respawns_simulators_and_reward_node_as_inest_launch_does(monkeypatch):
+    """inest.launch.py with stand-ins for `launch` and `launch_ros` (not on PyPI; the Docker
+    image runs the real ones): the nodes it starts and their respawn settings."""
+
+    class Node:  # launch_ros.actions.Node: keeps what the launch file asks for
+        def __init__(self, **settings):
+            self.settings = settings
+
+    class LaunchConfiguration:
+        def __init__(self, name: str):
+            self.name = name
+
+        def perform(self, context: dict) -> str:
+            return context[self.name]
+
+    def action(*args, **kwargs):
+        return args, kwargs
+
+    stand_ins = {
+        "launch": SimpleNamespace(LaunchDescription=list),
+        "launch.actions": SimpleNamespace(
+            DeclareLaunchArgument=action, OpaqueFunction=action, SetEnvironmentVariable=action
+        ),
+        "launch.substitutions": SimpleNamespace(LaunchConfiguration=LaunchConfiguration),
+        "launch_ros": SimpleNamespace(),
+        "launch_ros.actions": SimpleNamespace(Node=Node),
+    }
+    for name, module in stand_ins.items():
+        monkeypatch.setitem(sys.modules, name, module)
+    monkeypatch.setattr(ament_index_python.packages, "get_package_share_directory", lambda package: package)
+    path = Path(__file__).resolve().parent.parent / "ros2_ws/src/inest_bringup/launch/inest.launch.py"
+    spec = importlib.util.spec_from_file_location("inest_launch_file", path)
+    launch_file = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(launch_file)
+    arguments = {"sims": "2", "params_file": "inest.params.yaml", "mode": "lockstep", "model": "", "agent": "true"}
+    nodes = launch_file.graph(arguments | {"out": "runs/graph/agent"})
+    executables = [node.settings["executable"] for node in nodes]
+    assert executables == ["inest-sim-node", "inest-sim-node", "inest-reward-node", "inest-agent-node"]
+    policy = RespawnPolicy()
+    for node in nodes[:3]:
+        respawn = {key: node.settings[key] for key in ("respawn", "respawn_delay", "respawn_max_retries")}
+        assert respawn == {"respawn": True, "respawn_delay": policy.delay, "respawn_max_retries": policy.max_respawns}
+    assert "respawn" not in nodes[3].settings  # a restarted agent must resume: not done behind the user's back
+    assert [node.settings["namespace"] for node in nodes[:2]] == ["sim0", "sim1"]
 
 
 def launch(tmp_path: Path, tiny_model: Path, *extra: str) -> subprocess.Popen:

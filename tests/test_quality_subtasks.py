@@ -171,3 +171,18 @@ def test_scorer_arguments_build_the_reward_config():
     assert scorer_arguments({"no_such_option": 1}) == {"no_such_option": 1}  # for RewardScorer to refuse
     with pytest.raises(ScorerOptionError, match="shaping"):
         scorer_arguments({"shaping": "nonsense"})
+
+
+def test_the_report_replays_a_pixel_stage_tracker_on_the_frames(tiny_model, tiny_demos, negatives):
+    pixels = {"config": RewardConfig(stage_evidence="pixels")}  # the default, confirmed tracker
+    demo = load_demos(tiny_demos, "valid", tiny_model.view, tiny_model.image_size, limit=1, progress_bar=False)[0]
+    embeddings = tiny_model.embed(demo.frames)
+    result = demo_quality(tiny_model, demo, embeddings, 3, "inest", pixels)
+    live = rewards.RewardScorer(tiny_model, 3, "inest", **pixels)  # frame by frame, as a camera would
+    scored = np.concatenate([live.score_frames(frame[None]).total for frame in demo.frames])
+    np.testing.assert_allclose(result.reward, scored, rtol=1e-5, atol=1e-6)
+    with pytest.raises(ValueError, match="needs every frame's stage_evidence"):
+        rewards.replay(tiny_model, embeddings, 3, "inest", pixels)
+    episodes, embedded = negatives
+    flags = negative_flags(tiny_model, episodes["random"], embedded["random"], 3, "inest", pixels)
+    assert flags.shape == (len(episodes["random"]), 3)

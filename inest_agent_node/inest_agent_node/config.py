@@ -202,6 +202,9 @@ class GridConfig:
     total_steps: int = 500_000
     config: str = "inest_agent_node/config/train.yaml"
     out: str = "runs/grid"
+    # a demonstration dataset: the report scores every method's reward model on its validation
+    # split (reward MSE / MAE against the environment's reward); none: no quality table
+    demos: str | None = None
 
     def __post_init__(self) -> None:
         if not self.methods:
@@ -217,6 +220,8 @@ class GridConfig:
         for name in ("config", "out"):
             if not isinstance(getattr(self, name), str) or not getattr(self, name):
                 raise ValueError(f"{name} must be a path, got {getattr(self, name)!r}")
+        if self.demos is not None and (not isinstance(self.demos, str) or not self.demos):
+            raise ValueError(f"demos must be a dataset folder, got {self.demos!r}")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -17,8 +17,9 @@ report is written.
 
 `inest-experiments report GRID.yaml|OUT` writes OUT/report.md (per method: mean score with a
 95 % bootstrap interval over seeds, success rate, 0/1/2/3-block shares; per run; cells not
-finished), OUT/summary.json and OUT/learning_curves.png (summary.py). The learned reward's
-error against the environment's reward is not in it: that is `inest-reward-quality`'s report.
+finished), OUT/summary.json and OUT/learning_curves.png (summary.py); with the grid's `demos`,
+also every method's reward error against the environment's reward on those held-out
+demonstrations (grid_quality.py).
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ from inest_common.progress import track
 from inest_reward_node.runs import CONFIG_FILE
 
 from .config import GridConfig
+from .grid_quality import quality_table
 from .summary import summarise, write_summary
 from .train import RESULTS_FILE, parse_args
 
@@ -103,6 +105,8 @@ def plan(grid: GridConfig, selected: list[str], workdir: Path) -> list[Cell]:
     config = workdir / grid.config
     if not config.is_file():
         raise ValueError(f"no training config file at {config} (the grid's `config`)")
+    if grid.demos is not None and not (workdir / grid.demos).is_dir():
+        raise ValueError(f"no demonstration dataset at {workdir / grid.demos} (the grid's `demos`)")
     out = workdir / grid.out
     cells = []
     for method in selected or list(grid.methods):
@@ -252,9 +256,12 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
     summary = summarise(out)
     if not summary["runs"]:
         raise ValueError(f"no training runs under {out}/<method>/<run>/")
-    write_summary(out, summary)
     found = sorted({row["method"] for row in summary["runs"]})
     methods = list(grid.methods) + [m for m in found if m not in grid.methods] if grid else found
+    quality_lines: list[str] = []
+    if grid and grid.demos:
+        quality_lines, summary["reward_quality"] = quality_table(out, methods, Path(grid.demos))
+    write_summary(out, summary)
     lines = [
         f"# Experiment grid: {out}",
         "",
@@ -294,13 +301,13 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
         missing = [f"{m}/seed{s}" for m in grid.methods for s in grid.seeds if f"{m}/seed{s}" not in started]
         if missing:
             lines += ["", f"Not started, or before their first evaluation: {', '.join(missing)}."]
+    lines += quality_lines
     lines += [
         "",
         "![learning curves: mean over seeds, band from the lowest to the highest seed](learning_curves.png)",
-        "",
-        "The learned reward's error against the environment's reward (reward quality) is not part of",
-        "this report: `inest-reward-quality MODEL DATASET` measures it for a reward model.",
     ]
+    if not quality_lines:
+        lines += ["", "Reward quality: set the grid's `demos` to a dataset to add each method's reward error."]
     (out / REPORT_FILE).write_text("\n".join(lines) + "\n")
     return out / REPORT_FILE
 

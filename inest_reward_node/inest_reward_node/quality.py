@@ -213,7 +213,7 @@ def negative_flags(
     num_subtasks = len(model.goals(scheme).goals)
     rows = []
     for episode, embedded in zip(episodes, embeddings, strict=True):
-        played = replay(model, embedded, scheme, variant, scorer_options)
+        played = replay(model, embedded, scheme, variant, scorer_options, episode.frames)
         events = [played.completion_events(k) for k in range(num_subtasks)]
         rows.append(false_completions(events, episode, scheme))
     return np.stack(rows) if rows else np.zeros((0, num_subtasks), dtype=bool)
@@ -255,6 +255,7 @@ def demo_quality(
         scheme,
         variant,
         scorer_options,
+        np.concatenate([demo.frames, np.repeat(demo.frames[-1:], SETTLE_FRAMES, 0)]),
     )
     played = Replay(settled.parts.select(slice(0, len(embeddings))), settled.num_subtasks)  # the scorer is causal
     env = np.concatenate([demo.rewards[:1], demo.rewards]).astype(np.float64)

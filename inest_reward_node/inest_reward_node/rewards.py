@@ -505,11 +505,17 @@ def replay(
     scheme: int,
     variant: str | None = None,
     scorer_options: dict[str, object] | None = None,
+    frames: np.ndarray | None = None,
 ) -> Replay:
     """Feed one episode's embeddings, in order, through a fresh scorer: `RewardScorer(model,
     scheme, variant, **scorer_options)` (no intrinsic bonus unless the options ask for one),
-    all frames in one `score_embeddings` call as rows of environment 0, one round per frame."""
+    all frames in one `score_embeddings` call as rows of environment 0, one round per frame.
+    `frames` (the images the embeddings came from) give a tracker that reads the pixel stage
+    head its evidence; it refuses to replay without them."""
     scorer = RewardScorer(model, scheme, variant, **(scorer_options or {}))
-    frames = len(embeddings)
-    parts = scorer.score_embeddings(np.asarray(embeddings), envs=np.zeros(frames, dtype=int), rounds=np.arange(frames))
+    count = len(embeddings)
+    evidence = None if frames is None else scorer.stage_evidence(np.asarray(frames))
+    parts = scorer.score_embeddings(
+        np.asarray(embeddings), envs=np.zeros(count, dtype=int), rounds=np.arange(count), stage_evidence=evidence
+    )
     return Replay(parts, scorer.num_subtasks)

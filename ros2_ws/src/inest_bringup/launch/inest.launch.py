@@ -3,20 +3,23 @@
 The same nodes and params file as `inest-launch` (the pip set-up's launcher): simulators in
 namespaces sim0, sim1, ..., one reward node scoring all of them, one agent learning from all.
 `agent:=false` starts simulators and reward node only (e.g. with `mode:=realtime` to watch).
-Simulators and reward node respawn like under `inest-launch` (RESPAWN: up to 3 times, 2 s apart);
-the agent does not (a restarted agent needs resume:=true: start it again with that).
+Simulators and reward node respawn as under `inest-launch` (RESPAWN: supervisor.RespawnPolicy's
+retries and first delay; ROS launch keeps the delay constant where inest-launch doubles it); the
+agent does not (a restarted agent needs resume:=true: start it again with that).
 """
 
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
+from inest_bringup.supervisor import RespawnPolicy
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction, SetEnvironmentVariable
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 SHARE = Path(get_package_share_directory("inest_bringup"))
-RESPAWN = {"respawn": True, "respawn_delay": 2.0, "respawn_max_retries": 3}
+POLICY = RespawnPolicy()
+RESPAWN = {"respawn": True, "respawn_delay": POLICY.delay, "respawn_max_retries": POLICY.max_respawns}
 
 
 def graph(context):

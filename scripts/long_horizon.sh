@@ -25,6 +25,7 @@ declare -A METHODS=(
   [inest3-none]="--reward inest --model $MODEL --intrinsic none --total-steps 300000"
   [inest3-embedding-state-obs]="--reward inest --model $MODEL --intrinsic embedding --observation state --total-steps 300000"
   [inest3-pixel-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000"
+  [inest3-pixel-embedding]="--reward inest --model $PIXEL_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
   [inest3-pixel-classifier-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --tracker classifier --total-steps 300000"
   # DIAGNOSTIC, never a method: the learned shaping with the stage and bonus of the true progress
   [inest3-privileged-stage]="--reward inest --model $MODEL --intrinsic embedding --stage-source privileged --total-steps 300000"

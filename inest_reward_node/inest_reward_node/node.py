@@ -180,8 +180,12 @@ class RewardNode(Node):
             msg.subtask, msg.num_subtasks = frame.subtask, self.streams.scorer.num_subtasks
             msg.subtask_completed = frame.completed_subtask
             self.reward_pubs[frame.stream].publish(msg)
-            self.total_pubs[frame.stream].publish(Float32(data=frame.total))
-            self.subtask_pubs[frame.stream].publish(Int32(data=frame.subtask))
+            # the plain-number copies are for plots and recorders: published only while one listens,
+            # since two more messages per frame cost the training graph (the agent reads `reward`)
+            if self.total_pubs[frame.stream].get_subscription_count():
+                self.total_pubs[frame.stream].publish(Float32(data=frame.total))
+            if self.subtask_pubs[frame.stream].get_subscription_count():
+                self.subtask_pubs[frame.stream].publish(Int32(data=frame.subtask))
 
     def publish_diagnostics(self) -> None:
         self.write_log()  # the counts of floods that have stopped

@@ -109,7 +109,12 @@ def main() -> None:
             rclpy.shutdown()
             for process in processes:
                 process.terminate()
-                process.wait()
+            for process in processes:  # a node that misses its SIGTERM (seen once, in rclpy's wait) is killed
+                try:
+                    process.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    process.kill()
+                    process.wait()
     medians = median_speeds(speeds)
     fastest_in_process = max((name for name in speeds if name.startswith("in_process")), key=medians.__getitem__)
     ratio = paired_ratio(speeds["graph"], speeds[fastest_in_process])

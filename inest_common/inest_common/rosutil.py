@@ -15,7 +15,7 @@ from typing import Any
 import rclpy
 from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
 NANOSECONDS = 1_000_000_000
@@ -87,6 +87,22 @@ def reject_unknown_parameters(node: Node) -> None:
         raise ParameterError(f"{node.get_name()} has no parameter {', '.join(hints)}")
 
 
+SHUTDOWN_CHECK_S = 0.5  # how often an idle node looks whether Ctrl-C or SIGTERM shut ROS down
+
+
+def spin_until_shutdown(node: Node) -> None:
+    """`rclpy.spin`, but never blocked for longer than SHUTDOWN_CHECK_S: an idle node spinning
+    without a timeout sometimes slept through the SIGTERM that shut its context down and never
+    exited (scripts/experiments/sigterm_check.sh)."""
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=SHUTDOWN_CHECK_S)
+    finally:
+        executor.shutdown()
+
+
 def run_node(
     make_node: Callable[[], Node],
     spin: Callable[[Node], None] | None = None,
@@ -100,10 +116,7 @@ def run_node(
     try:
         node = make_node()
         reject_unknown_parameters(node)
-        if spin is None:
-            rclpy.spin(node)
-        else:
-            spin(node)
+        (spin or spin_until_shutdown)(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except config_errors as error:

@@ -6,6 +6,7 @@ import dataclasses
 import importlib.util
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -199,6 +200,11 @@ def test_report_scores_each_learned_reward_on_the_grids_demonstrations(tmp_path,
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["reward_quality"]["inest3"]["reward_mse"] == pytest.approx(mse, abs=1e-4)
     assert main(["report", str(grid)]) == 0 and report.stat().st_mtime_ns == kept  # kept, not scored again
+    other = tmp_path / "other-demos"  # another dataset: scored again, labelled with it
+    shutil.copytree(tiny_demos, other)
+    grid.write_text(grid.read_text().replace(str(tiny_demos), str(other)))
+    assert main(["report", str(grid)]) == 0 and report.stat().st_mtime_ns != kept
+    assert json.loads((report.parent / "scored.json").read_text())["demos"] == str(other.resolve())
     (tmp_path / "inest3" / "quality").rename(tmp_path / "scored")
     (tmp_path / "inest3" / "seed0" / "config.json").write_text(
         json.dumps(small_train_config(reward="inest", model=str(tmp_path / "gone")).to_dict())

@@ -168,7 +168,12 @@ def test_scorer_arguments_build_the_reward_config():
     assert arguments == {"num_envs": 2, "config": RewardConfig(shaping="thesis", tracker="threshold")}
     arguments = scorer_arguments({"config": {"shaping": "raw"}, "hold_steps": 2})
     assert arguments["config"] == RewardConfig(shaping="raw", hold_steps=2)
-    assert scorer_arguments({"no_such_option": 1}) == {"no_such_option": 1}  # for RewardScorer to refuse
+    with pytest.raises(
+        ScorerOptionError, match=r"unknown scorer option 'stage_evidnce' \(did you mean stage_evidence\?\)"
+    ):
+        scorer_arguments({"stage_evidnce": "pixels"})
+    with pytest.raises(ScorerOptionError, match=r"unknown scorer option 'no_such_option'; the options are .*tracker"):
+        scorer_arguments({"no_such_option": 1})
     with pytest.raises(ScorerOptionError, match="shaping"):
         scorer_arguments({"shaping": "nonsense"})
 

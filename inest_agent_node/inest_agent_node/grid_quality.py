@@ -5,16 +5,18 @@ held-out demonstrations (the grid's `demos`, validation split).
 The figures are the report's: MSE and MAE of the min-max-normalised learned reward against the
 min-max-normalised environment reward per demonstration, and the goal-similarity error (each
 subtask goal's min-max cosine similarity against a Gaussian bump over the subtask's true
-frames), means over demonstrations. Each method's report is kept in OUT/<method>/quality/ and
-reused; delete that folder to score again.
+frames), means over demonstrations. Each method's report is kept in OUT/<method>/quality/ with
+what it scored (`scored.json`: dataset, model, scheme, reward settings) and reused while those
+are the same; otherwise it is scored again.
 """
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
-from inest_common.files import read_json, read_run_file
+from inest_common.files import read_json, read_run_file, write_atomic
 from inest_reward_node.data import load_demos
 from inest_reward_node.model import ModelError, load_model
 from inest_reward_node.quality import REPORT_FILE, evaluate
@@ -25,6 +27,7 @@ from inest_sim_node.dataset import DatasetError
 from .config import SUBTASK_REWARDS
 
 QUALITY_DIR = "quality"
+SCORED_FILE = "scored.json"  # what the kept report scored: reused only for the same
 
 
 def scored_reward(run_config: dict[str, Any]) -> tuple[str, int, dict[str, Any]] | None:
@@ -52,7 +55,14 @@ def method_quality(
         return None
     model_dir, scheme, options = scored
     folder = method_dir / QUALITY_DIR
-    if not (folder / REPORT_FILE).is_file():
+    what = {
+        "demos": str(demos.resolve()),
+        "model": str(Path(model_dir).resolve()),
+        "subtasks": scheme,
+        "learned_reward": run_config["learned_reward"],
+    }
+    kept = folder / SCORED_FILE
+    if not (folder / REPORT_FILE).is_file() or not kept.is_file() or read_run_file(kept, read_json) != what:
         try:
             model = load_model(model_dir, view=run_config["view"], scheme=scheme)
             key = (model.view, model.image_size)
@@ -63,6 +73,7 @@ def method_quality(
             evaluate(model, loaded[key], [scheme], folder, progress_bar, options, negative_episodes=0)
         except (ModelError, DatasetError) as error:
             raise ValueError(f"reward quality of {method_dir.name}: {error}") from None
+        write_atomic(kept, lambda temporary: temporary.write_text(json.dumps(what, indent=2) + "\n"))
     summary = read_run_file(folder / REPORT_FILE, read_json)["schemes"][str(scheme)]
     return {
         "model": model_dir,
@@ -86,10 +97,11 @@ def quality_table(out: Path, methods: list[str], demos: Path) -> tuple[list[str]
         return [], figures
     lines = [
         "",
-        f"Reward quality on the validation demonstrations of `{demos}` (`inest-reward-quality`'s report,",
-        "kept in `<method>/quality/`): the learned reward against the environment's reward, both",
-        "min-max normalised per demonstration; goal error: each subtask goal's cosine similarity",
-        "against a Gaussian over the subtask's true frames. Lower is better; the oracle has none.",
+        f"Reward quality on the validation demonstrations of `{demos}`",
+        "(`inest-reward-quality`'s report, kept in `<method>/quality/`): the learned reward against",
+        "the environment's reward, both min-max normalised per demonstration; goal error: each",
+        "subtask goal's cosine similarity against a Gaussian over the subtask's true frames. Lower",
+        "is better; the oracle has none.",
         "",
         "| method | reward | subtasks | demos | reward MSE | reward MAE | goal error (cosine MSE) |",
         "|---|---|---|---|---|---|---|",

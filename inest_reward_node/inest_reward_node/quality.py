@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import difflib
 import inspect
 import json
 import math
@@ -456,10 +457,16 @@ def parse_scorer_option(text: str) -> tuple[str, Any]:
 def scorer_arguments(options: dict[str, Any]) -> dict[str, Any]:
     """--scorer-option values -> RewardScorer keyword arguments. A key naming a RewardScorer parameter
     passes through (a JSON object for `config` / `intrinsic` becomes a RewardConfig / IntrinsicConfig);
-    a key naming a RewardConfig field (shaping, tracker, hold_steps, ...) goes into `config`; anything
-    else is passed on, for RewardScorer to refuse."""
+    a key naming a RewardConfig field (shaping, tracker, hold_steps, ...) goes into `config`; any
+    other key is refused, naming the closest valid one."""
     parameters = inspect.signature(RewardScorer.__init__).parameters
     config_fields = {item.name for item in dataclasses.fields(RewardConfig)}
+    valid = sorted((set(parameters) - {"self", "model"}) | config_fields)
+    for key in options:
+        if key not in valid:
+            close = difflib.get_close_matches(key, valid, 1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            raise ScorerOptionError(f"unknown scorer option {key!r}{hint}; the options are {', '.join(valid)}")
     arguments: dict[str, Any] = {}
     into_config: dict[str, Any] = {}
     try:

@@ -25,6 +25,12 @@ REWARDS = ("env", "xirl", "holdr", "reds", "inest", "topic")  # topic: served by
 SUBTASK_REWARDS = ("inest", "reds", "topic")  # the rewards scored with `subtasks` subtasks (the others: 1)
 
 
+def reward_scheme(reward: str, subtasks: int) -> int:
+    """The subtask scheme a learned `reward` is scored with: `subtasks` for the staged rewards,
+    1 for XIRL and HOLD-R (one goal)."""
+    return subtasks if reward in SUBTASK_REWARDS else 1
+
+
 def reject_unknown(data: dict[str, Any], known: set[str], what: str) -> None:
     unknown = sorted(set(data) - known)
     if unknown:
@@ -133,7 +139,7 @@ class TrainConfig:
         the learned reward's subtasks otherwise (XIRL and HOLD-R have one goal; REDS infers its own)."""
         if self.reward == "env":
             return NUM_BLOCKS
-        return self.subtasks if self.reward in SUBTASK_REWARDS else 1
+        return reward_scheme(self.reward, self.subtasks)
 
     def to_dict(self) -> dict[str, Any]:
         data = asdict(self)

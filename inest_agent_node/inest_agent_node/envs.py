@@ -25,7 +25,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
 
 from inest_sim_node import EnvConfig, SweepToTopEnv
 
-from .config import SUBTASK_REWARDS, TrainConfig
+from .config import TrainConfig, reward_scheme
 
 FRAME_KEY = "camera_frame"
 TRUE_PROGRESS = "progress"  # blocks placed in order (the simulator's, 0..3)
@@ -233,7 +233,7 @@ def build_env(
     if reward == "env" or (evaluation and config.observation == "state"):
         venv = wrap_simulators(make_vec_env(num_envs, env_config, seed))
         return with_observation(venv, config, TRUE_PROGRESS)
-    scheme = config.subtasks if reward in SUBTASK_REWARDS else 1
+    scheme = reward_scheme(reward, config.subtasks)
     model = load_model(config.model, view=config.view, scheme=scheme)
     intrinsic = IntrinsicConfig(mode="none") if evaluation else config.intrinsic
     scorer = RewardScorer(model, scheme, variant, intrinsic, num_envs, config=config.learned_reward)

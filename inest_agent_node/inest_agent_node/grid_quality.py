@@ -24,7 +24,7 @@ from inest_reward_node.runs import CONFIG_FILE
 from inest_reward_node.stages import RewardConfig
 from inest_sim_node.dataset import DatasetError
 
-from .config import SUBTASK_REWARDS
+from .config import reward_scheme
 
 QUALITY_DIR = "quality"
 SCORED_FILE = "scored.json"  # what the kept report scored: reused only for the same
@@ -36,8 +36,8 @@ def scored_reward(run_config: dict[str, Any]) -> tuple[str, int, dict[str, Any]]
     reward = run_config["reward"]
     if reward == "env":
         return None
-    scheme = run_config["subtasks"] if reward in SUBTASK_REWARDS else 1
-    return run_config["model"], scheme, {"config": RewardConfig(**run_config["learned_reward"])}
+    options = {"config": RewardConfig(**run_config["learned_reward"])}
+    return run_config["model"], reward_scheme(reward, run_config["subtasks"]), options
 
 
 def method_quality(

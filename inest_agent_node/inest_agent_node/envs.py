@@ -28,30 +28,41 @@ from inest_sim_node import EnvConfig, SweepToTopEnv
 from .config import TrainConfig, reward_scheme
 
 FRAME_KEY = "camera_frame"
+STAGE_FRAME_KEY = "stage_camera_frame"  # the stage head's camera, when it is not the encoder's
 TRUE_PROGRESS = "progress"  # blocks placed in order (the simulator's, 0..3)
 LEARNED_STAGE = "learned_stage"  # subtasks the learned reward counts as done (0..num_subtasks)
 SHAPING, BONUS, INTRINSIC = "shaping_reward", "subtask_bonus", "intrinsic_reward"
 
 
 class CameraFrameInInfo(gymnasium.Wrapper):
-    """Puts the camera frame the learned reward scores into `info`, so it survives auto-reset."""
+    """Puts the camera frame the learned reward scores into `info`, so it survives auto-reset,
+    and the stage head's camera frame too when it reads another camera (`stage_view`)."""
 
-    def __init__(self, env: SweepToTopEnv, view: str, size: int) -> None:
+    def __init__(self, env: SweepToTopEnv, view: str, size: int, stage_view: str | None = None) -> None:
         super().__init__(env)
-        self.view, self.size = view, size
+        self.view, self.size, self.stage_view = view, size, stage_view
 
     def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         observation, reward, terminated, truncated, info = self.env.step(action)
         info[FRAME_KEY] = self.env.unwrapped.render_camera(self.view, self.size)
+        if self.stage_view is not None:
+            info[STAGE_FRAME_KEY] = self.env.unwrapped.render_camera(self.stage_view, self.size)
         return observation, reward, terminated, truncated, info
 
 
-def make_vec_env(num_envs: int, env_config: EnvConfig, seed: int, frames: tuple[str, int] | None = None) -> VecEnv:
-    """N in-process environments on seeds seed, seed + 1, ...; `frames` = (view, size) adds camera frames."""
+def make_vec_env(
+    num_envs: int,
+    env_config: EnvConfig,
+    seed: int,
+    frames: tuple[str, int] | None = None,
+    stage_view: str | None = None,
+) -> VecEnv:
+    """N in-process environments on seeds seed, seed + 1, ...; `frames` = (view, size) adds camera
+    frames, `stage_view` those of a second camera for the stage head."""
 
     def make() -> gymnasium.Env:
         env = SweepToTopEnv(config=env_config)
-        return CameraFrameInInfo(env, *frames) if frames else env
+        return CameraFrameInInfo(env, *frames, stage_view) if frames else env
 
     venv = DummyVecEnv([make] * num_envs)
     venv.seed(seed)  # the first reset of environment i uses seed + i
@@ -63,6 +74,7 @@ class WaitingStep:
     """One vector step whose frames are not scored yet."""
 
     frames: np.ndarray  # (N, H, W, 3)
+    stage_frames: np.ndarray | None  # (N, H, W, 3) of the stage head's camera, when it is another
     states: np.ndarray  # (N, state_dim), the transition's next states (terminal ones at episode ends)
     dones: np.ndarray  # (N,)
     infos: list[dict[str, Any]]
@@ -130,12 +142,13 @@ class LearnedRewardVecEnv(VecEnvWrapper):
     def step_wait(self):
         observations, env_rewards, dones, infos = self.venv.step_wait()
         frames = np.stack([info.pop(FRAME_KEY) for info in infos])
+        stage_frames = np.stack([info.pop(STAGE_FRAME_KEY) for info in infos]) if STAGE_FRAME_KEY in infos[0] else None
         states = np.stack(
             [info.get("terminal_observation", obs) for info, obs in zip(infos, observations, strict=True)]
         )
         for index, info in enumerate(infos):
             info["env_reward"] = float(env_rewards[index])
-        self.waiting.append(WaitingStep(frames, states, dones.copy(), infos))
+        self.waiting.append(WaitingStep(frames, stage_frames, states, dones.copy(), infos))
         if len(self.waiting) >= self.batch_steps:
             self.score_waiting()
         if self.batch_steps == 1:
@@ -154,6 +167,9 @@ class LearnedRewardVecEnv(VecEnvWrapper):
             envs=np.tile(np.arange(count), steps),
             rounds=np.repeat(np.arange(steps), count),
             episode_ends=np.concatenate([step.dones for step in self.waiting]),
+            stage_frames=None
+            if self.scorer.stage_camera is None
+            else np.concatenate([s.stage_frames for s in self.waiting]),
         )
         for position, step in enumerate(self.waiting):
             parts = scored.select(slice(position * count, (position + 1) * count))
@@ -237,7 +253,8 @@ def build_env(
     model = load_model(config.model, view=config.view, scheme=scheme)
     intrinsic = IntrinsicConfig(mode="none") if evaluation else config.intrinsic
     scorer = RewardScorer(model, scheme, variant, intrinsic, num_envs, config=config.learned_reward)
-    venv = wrap_simulators(make_vec_env(num_envs, env_config, seed, (config.view, model.image_size)))
+    frames = (config.view, model.image_size)
+    venv = wrap_simulators(make_vec_env(num_envs, env_config, seed, frames, scorer.stage_camera))
     batch_steps = 1 if evaluation else config.reward_batch_steps
     return with_observation(LearnedRewardVecEnv(venv, scorer, batch_steps=batch_steps), config, LEARNED_STAGE)
 

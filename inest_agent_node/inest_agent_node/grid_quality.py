@@ -19,7 +19,7 @@ from typing import Any
 from inest_common.files import read_json, read_run_file, write_atomic
 from inest_reward_node.data import load_demos
 from inest_reward_node.model import ModelError, load_model
-from inest_reward_node.quality import REPORT_FILE, evaluate
+from inest_reward_node.quality import REPORT_FILE, evaluate, load_stage_frames
 from inest_reward_node.runs import CONFIG_FILE
 from inest_reward_node.stages import RewardConfig
 from inest_sim_node.dataset import DatasetError
@@ -70,7 +70,10 @@ def method_quality(
                 loaded[key] = load_demos(demos, "valid", model.view, model.image_size, progress_bar=progress_bar)
             if not loaded[key]:
                 raise DatasetError(f"{demos} has no validation demonstrations")
-            evaluate(model, loaded[key], [scheme], folder, progress_bar, options, negative_episodes=0)
+            frames = load_stage_frames(model, [scheme], options, demos, "valid", progress_bar=progress_bar)
+            evaluate(
+                model, loaded[key], [scheme], folder, progress_bar, options, negative_episodes=0, stage_frames=frames
+            )
         except (ModelError, DatasetError) as error:
             raise ValueError(f"reward quality of {method_dir.name}: {error}") from None
         write_atomic(kept, lambda temporary: temporary.write_text(json.dumps(what, indent=2) + "\n"))

@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from inest_common.progress import track
 
-from .clips import load_clips, random_play, wrong_order_play
-from .data import Demo
+from .clips import Clip, load_clips, random_play, wrong_order_play
+from .data import Demo, load_demos
 from .model import RewardModel, SubtaskGoals
 from .rewards import subtask_rewards
 from .stage_head import StageHeadConfig, fit_stage_head
@@ -179,6 +179,9 @@ def calibrate(
     others = wrong_order_play(config.view, size, config.calibration.wrong_order_episodes)  # classifier only
     others += [clip for path in config.calibration.clips for clip in load_clips(path, config.view, size)]
     other_embeddings = [model.embed(clip.frames) for clip in others]
+    head_episodes = (
+        stage_head_episodes(config, demos, plays + others) if config.calibration.stage_head.iterations else ([], [])
+    )
     schemes = {"tcc": TCC_SCHEMES, "reds": (config.reds.subtasks,)}.get(config.method, (1,))
     result = {}
     for scheme in schemes:
@@ -215,13 +218,31 @@ def calibrate(
         )
         head = config.calibration.stage_head
         if head.iterations:
-            labelled = demos[: head.max_demos]
+            labelled, played = head_episodes
             partial.stage_head = fit_stage_head(
-                [demo.frames for demo in labelled] + [clip.frames for clip in plays + others],
+                [demo.frames for demo in labelled] + [clip.frames for clip in played],
                 [demo_stages(demo.progress, demo.labels[scheme], scheme) for demo in labelled]
-                + [true_stages(clip.progress, clip.held, scheme) for clip in plays + others],
+                + [true_stages(clip.progress, clip.held, scheme) for clip in played],
                 scheme + 1,
                 head,
             )
         result[scheme] = partial
     return result
+
+
+def stage_head_episodes(config: PretrainConfig, demos: list[Demo], plays: list[Clip]) -> tuple[list[Demo], list[Clip]]:
+    """The labelled demonstrations and play the pixel stage head is fitted on, in the camera it
+    reads. `plays`: the calibration's random, wrong-order and clip-file play in the encoder's
+    camera. A head of another camera sees the same demonstrations and the same random and
+    wrong-order episodes (their seeds fix them) through its own; clip files record one camera,
+    so it is fitted without them."""
+    head = config.calibration.stage_head
+    view = head.view or config.view
+    if view == config.view:
+        return demos[: head.max_demos], plays
+    size = config.encoder.image_size
+    calibration = config.calibration
+    labelled = load_demos(config.dataset, "train", view, size, min(head.max_demos, len(demos)), progress_bar=False)
+    return labelled, random_play(view, size, calibration.random_episodes) + wrong_order_play(
+        view, size, calibration.wrong_order_episodes
+    )

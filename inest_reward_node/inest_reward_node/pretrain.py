@@ -7,7 +7,8 @@ baseline, `--method reds` the REDS baseline without CLIP (reds.py; `--reds-subta
 subtask embeddings), thresholds, start distances and stage classifier for 1, 3 and 6 subtasks
 (HOLD-R: 1; REDS: its own segmentation) are computed from the training demonstrations (and
 random and wrong-order play) and the model folder is written; `--resume` on a finished run
-recalibrates.
+recalibrates, and `--recalibrate MODEL` calibrates the trained encoder of any model folder anew
+with this command line's calibration settings (minutes, not a pretraining), into `--out`/model.
 (Each method's loss lives in objectives.py, calibration in calibrate.py; this module holds the
 configuration, the training loop and the command line.)
 
@@ -37,7 +38,7 @@ from .clips import load_clips
 from .data import AugmentConfig, Demo, load_demos
 from .encoders import ENCODER_KINDS, EncoderConfig
 from .holdr import HoldRConfig
-from .model import METHODS, ModelMetadata, RewardModel, SubtaskGoals, build_network, load_model, save_model
+from .model import METHODS, ModelError, ModelMetadata, RewardModel, SubtaskGoals, build_network, load_model, save_model
 from .objectives import OBJECTIVES
 from .reds import RedsConfig
 from .runs import prepare_run_dir
@@ -229,6 +230,39 @@ class Pretrainer:
         return load_model(self.run_dir / MODEL_DIR)  # exactly the model a later load gives
 
 
+def recalibrate(
+    config: PretrainConfig, source: str | Path, run_dir: str | Path, progress_bar: bool = True
+) -> RewardModel:
+    """The trained network of the model folder `source`, calibrated on `config.dataset` with
+    `config`'s shaping and calibration settings; what it was trained with (method, view,
+    encoder, the training record) comes from `source`. Written to `run_dir`/model."""
+    trained = load_model(source)
+    metadata = trained.metadata
+    config = dataclasses.replace(
+        config,
+        method=metadata.method,
+        view=metadata.view,
+        encoder=metadata.encoder,
+        holdr=metadata.holdr or config.holdr,
+        reds=metadata.reds or config.reds,
+    )
+    out = Path(run_dir) / MODEL_DIR
+    if (out / "model.json").exists():
+        raise FileExistsError(f"{out} already holds a model; choose another --out")
+    for path in config.calibration.clips:
+        load_clips(path, config.view, config.encoder.image_size)
+    demos = load_demos(
+        config.dataset, "train", config.view, config.encoder.image_size, config.train_limit, progress_bar
+    )
+    subtasks = calibrate(trained, demos, config, progress_bar)
+    calibrated = dataclasses.replace(
+        model_metadata(config, int(metadata.training.get("iterations", 0)), subtasks),
+        training={**metadata.training, "recalibrated_from": str(source)},
+    )
+    save_model(out, trained.network, calibrated)
+    return load_model(out)
+
+
 def pretrain(
     config: PretrainConfig, run_dir: str | Path, resume: bool = False, progress_bar: bool = True
 ) -> RewardModel:
@@ -263,6 +297,12 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
     parser.add_argument("dataset", help="demonstration dataset folder (inest-collect-demos)")
     parser.add_argument("--out", required=True, help="run folder")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+    parser.add_argument(
+        "--recalibrate",
+        metavar="MODEL",
+        help="no training: calibrate the trained encoder of the model folder MODEL anew with the calibration "
+        "options given here, into --out/model",
+    )
     parser.add_argument("--method", choices=METHODS, default=defaults.method)
     parser.add_argument("--view", choices=("ego", "allo"), default=defaults.view)
     parser.add_argument("--encoder", choices=ENCODER_KINDS, default=defaults.encoder.kind)
@@ -300,6 +340,12 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         type=int,
         default=defaults.calibration.stage_head.iterations,
         help="training iterations of the pixel stage head (stage_head.py); 0: none",
+    )
+    parser.add_argument(
+        "--stage-head-view",
+        choices=("ego", "allo"),
+        help="the camera the pixel stage head reads (default: the encoder's --view); allo: the scene "
+        "camera that always sees the goal strip",
     )
     parser.add_argument(
         "--reds-subtasks",
@@ -347,7 +393,9 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
             demo_pass_rate=args.demo_pass_rate,
             wrong_order_episodes=args.wrong_order_episodes,
             clips=tuple(args.clips),
-            stage_head=dataclasses.replace(defaults.calibration.stage_head, iterations=args.stage_head_iterations),
+            stage_head=dataclasses.replace(
+                defaults.calibration.stage_head, iterations=args.stage_head_iterations, view=args.stage_head_view
+            ),
         ),
         **{name: getattr(args, name) for name in INTEGER_OPTIONS},
     )
@@ -357,8 +405,12 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
 def main(argv: list[str] | None = None) -> int:
     try:
         config, args = parse_args(argv)
-        model = pretrain(config, args.out, resume=args.resume)
-    except (DatasetError, FileExistsError, ValueError) as error:  # ClipError is a ValueError
+        if args.recalibrate:
+            model = recalibrate(config, args.recalibrate, args.out)
+            config = dataclasses.replace(config, method=model.method, view=model.view)
+        else:
+            model = pretrain(config, args.out, resume=args.resume)
+    except (DatasetError, FileExistsError, ValueError, ModelError) as error:  # ClipError is a ValueError
         print(f"inest-pretrain: {error}", file=sys.stderr)
         return 2
     schemes = ", ".join(f"{scheme} subtasks" for scheme in sorted(model.subtasks))

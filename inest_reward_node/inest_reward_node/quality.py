@@ -209,12 +209,15 @@ def negative_flags(
     scheme: int,
     variant: str,
     scorer_options: dict[str, Any] | None = None,
+    stage_episodes: list[Clip] | None = None,
 ) -> np.ndarray:
-    """(episodes, subtasks) bool: a fresh scorer's false completions on each negative episode."""
+    """(episodes, subtasks) bool: a fresh scorer's false completions on each negative episode.
+    `stage_episodes`: the same episodes through the stage head's camera, when it is another."""
     num_subtasks = len(model.goals(scheme).goals)
     rows = []
-    for episode, embedded in zip(episodes, embeddings, strict=True):
-        played = replay(model, embedded, scheme, variant, scorer_options, episode.frames)
+    seen = stage_episodes or episodes
+    for episode, embedded, viewed in zip(episodes, embeddings, seen, strict=True):
+        played = replay(model, embedded, scheme, variant, scorer_options, viewed.frames)
         events = [played.completion_events(k) for k in range(num_subtasks)]
         rows.append(false_completions(events, episode, scheme))
     return np.stack(rows) if rows else np.zeros((0, num_subtasks), dtype=bool)
@@ -246,17 +249,20 @@ def demo_quality(
     scheme: int,
     variant: str,
     scorer_options: dict[str, Any] | None = None,
+    stage_frames: np.ndarray | None = None,
 ) -> DemoQuality:
+    """`stage_frames`: the demonstration through the stage head's camera, when it is another."""
     # a demonstration ends on the frame where its last block counts, while an episode goes on:
     # the tracker may confirm the last subtask on the frames after, so it is replayed over
     # SETTLE_FRAMES more copies of the last frame (per-frame metrics use the demonstration's own)
+    seen = demo.frames if stage_frames is None else stage_frames
     settled = replay(
         model,
         np.concatenate([embeddings, np.repeat(embeddings[-1:], SETTLE_FRAMES, 0)]),
         scheme,
         variant,
         scorer_options,
-        np.concatenate([demo.frames, np.repeat(demo.frames[-1:], SETTLE_FRAMES, 0)]),
+        np.concatenate([seen, np.repeat(seen[-1:], SETTLE_FRAMES, 0)]),
     )
     played = Replay(settled.parts.select(slice(0, len(embeddings))), settled.num_subtasks)  # the scorer is causal
     env = np.concatenate([demo.rewards[:1], demo.rewards]).astype(np.float64)
@@ -522,6 +528,33 @@ def check_scorer_options(model: RewardModel, schemes: list[int], scorer_options:
         describe_scorer(model, scheme, default_variant(model, scheme), scorer_options)
 
 
+def stage_camera(model: RewardModel, schemes: list[int], scorer_options: dict[str, Any] | None) -> str | None:
+    """The camera these scorers' pixel stage head reads when it is not the encoder's (every
+    episode must then be seen through both), else None."""
+    cameras = [
+        RewardScorer(model, scheme, default_variant(model, scheme), **(scorer_options or {})).stage_camera
+        for scheme in schemes
+    ]
+    return next((camera for camera in cameras if camera), None)
+
+
+def load_stage_frames(
+    model: RewardModel,
+    schemes: list[int],
+    scorer_options: dict[str, Any] | None,
+    dataset: str | Path,
+    split: str,
+    limit: int | None = None,
+    progress_bar: bool = True,
+) -> list[np.ndarray] | None:
+    """The demonstrations' frames through the stage head's camera (`stage_camera`); None when it
+    reads the encoder's."""
+    camera = stage_camera(model, schemes, scorer_options)
+    if camera is None:
+        return None
+    return [demo.frames for demo in load_demos(dataset, split, camera, model.image_size, limit, progress_bar)]
+
+
 # --- the report --------------------------------------------------------------------------------
 def evaluate(
     model: RewardModel,
@@ -532,16 +565,27 @@ def evaluate(
     scorer_options: dict[str, Any] | None = None,
     negative_episodes: int = DEFAULT_NEGATIVE_EPISODES,
     clip_files: Sequence[str] = (),
+    stage_frames: list[np.ndarray] | None = None,
 ) -> dict[str, Any]:
     """The report over `demos` for every scheme, with `negative_episodes` negatives of each kind
     (and the clips of `clip_files`);
-    every reward is scored by `RewardScorer(model, scheme, variant, **scorer_options)`."""
+    every reward is scored by `RewardScorer(model, scheme, variant, **scorer_options)`. A stage
+    head that reads another camera than the encoder needs the demonstrations through it
+    (`stage_frames`, load_stage_frames); the negatives are played through both."""
+    camera = stage_camera(model, schemes, scorer_options)
+    if camera is not None and (stage_frames is None or len(stage_frames) != len(demos)):
+        raise ValueError(f"the stage head reads the {camera!r} camera: pass the demonstrations' frames of it")
+    if camera is not None and clip_files:
+        raise ClipError(
+            f"clip files record one camera, and the stage head reads the {camera!r} camera beside the encoder's"
+        )
     out.mkdir(parents=True, exist_ok=True)
     embeddings = [
         model.embed(demo.frames) for demo in track(demos, desc="embedding", disable=not progress_bar, leave=False)
     ]
     with track(total=1, desc="negative episodes", disable=not progress_bar, leave=False) as bar:
         negatives = record_negatives(model.view, model.image_size, negative_episodes, clip_files)
+        seen = negatives if camera is None else record_negatives(camera, model.image_size, negative_episodes)
         bar.update(1)
     negative_embeddings = {
         kind: [model.embed(episode.frames) for episode in episodes] for kind, episodes in negatives.items()
@@ -558,11 +602,13 @@ def evaluate(
         variant = default_variant(model, scheme)
         scorer = describe_scorer(model, scheme, variant, scorer_options)
         results = [
-            demo_quality(model, demo, emb, scheme, variant, scorer_options)
-            for demo, emb in zip(demos, embeddings, strict=True)
+            demo_quality(model, demo, emb, scheme, variant, scorer_options, frames)
+            for demo, emb, frames in zip(demos, embeddings, stage_frames or [None] * len(demos), strict=True)
         ]
         flags = {
-            kind: negative_flags(model, negatives[kind], negative_embeddings[kind], scheme, variant, scorer_options)
+            kind: negative_flags(
+                model, negatives[kind], negative_embeddings[kind], scheme, variant, scorer_options, seen[kind]
+            )
             for kind in negatives
         }
         summary = {"variant": variant, "scorer": scorer, **summarise(results)}
@@ -694,6 +740,7 @@ def main(argv: list[str] | None = None) -> int:
             scorer_options=scorer_options,
             negative_episodes=args.negative_episodes,
             clip_files=args.clips,
+            stage_frames=load_stage_frames(model, schemes, scorer_options, args.dataset, args.split, args.limit),
         )
     except (ModelError, DatasetError, ScorerOptionError, ClipError) as error:
         print(f"inest-reward-quality: {error}", file=sys.stderr)

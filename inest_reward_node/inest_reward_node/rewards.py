@@ -266,6 +266,9 @@ class RewardScorer:
             self.stage_head = self.goals.require_stage_head()
         elif tracks and config.uses_classifier:
             self.classifier = self.goals.require_stage_classifier()
+        # the camera the stage head reads when it is not the encoder's (StageHeadConfig.view)
+        head_view = self.stage_head.config.view if self.stage_head else None
+        self.stage_camera = head_view if head_view not in (None, model.view) else None
         stage_model = self.classifier or self.stage_head
         if stage_model is not None and stage_model.num_stages != self.num_subtasks + 1:
             raise ModelError(
@@ -315,14 +318,21 @@ class RewardScorer:
         envs: np.ndarray | None = None,
         rounds: np.ndarray | None = None,
         episode_ends: np.ndarray | None = None,
+        stage_frames: np.ndarray | None = None,
     ) -> RewardParts:
         """`score_embeddings` of the frames' embeddings, with the pixel stage head's evidence when
-        the tracker reads it (RewardConfig.stage_evidence)."""
-        evidence = self.stage_evidence(frames)
+        the tracker reads it (RewardConfig.stage_evidence). `stage_frames`: the same steps seen by
+        the stage head's camera, needed when it is not the encoder's (`stage_camera`)."""
+        if self.stage_camera is None:
+            stage_frames = frames
+        elif stage_frames is None or len(stage_frames) != len(frames):
+            raise ValueError(f"the stage head reads the {self.stage_camera!r} camera: pass its frame of every step")
+        evidence = self.stage_evidence(stage_frames)
         return self.score_embeddings(self.model.embed(frames), states, envs, rounds, episode_ends, evidence)
 
     def stage_evidence(self, frames: np.ndarray) -> np.ndarray | None:
-        """(N, K + 1) P(stage >= j) of each frame from the pixel stage head; None when not used."""
+        """(N, K + 1) P(stage >= j) of each frame (of the head's camera) from the pixel stage
+        head; None when not used."""
         return None if self.stage_head is None else self.stage_head.at_least(frames)
 
     def score_embeddings(
@@ -510,8 +520,9 @@ def replay(
     """Feed one episode's embeddings, in order, through a fresh scorer: `RewardScorer(model,
     scheme, variant, **scorer_options)` (no intrinsic bonus unless the options ask for one),
     all frames in one `score_embeddings` call as rows of environment 0, one round per frame.
-    `frames` (the images the embeddings came from) give a tracker that reads the pixel stage
-    head its evidence; it refuses to replay without them."""
+    `frames` (the episode through the stage head's camera: the images the embeddings came from,
+    or the scene camera's when the head reads that, `RewardScorer.stage_camera`) give a tracker
+    that reads the pixel stage head its evidence; it refuses to replay without them."""
     scorer = RewardScorer(model, scheme, variant, **(scorer_options or {}))
     count = len(embeddings)
     evidence = None if frames is None else scorer.stage_evidence(np.asarray(frames))

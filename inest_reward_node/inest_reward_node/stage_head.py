@@ -8,6 +8,11 @@ frames gets 2.7 / 1.4 / 0.2 % (results/reward-signal/pixel-stage/). It is fitted
 on the training demonstrations and the random, wrong-order and clip-file play that the
 embedding classifier sees, class-balanced, and stored next to the encoder (`stage_heads.safetensors`).
 `RewardConfig.stage_evidence = "pixels"` makes the classifier and confirmed trackers use it.
+
+A head may read another camera than the encoder (`view`): an egocentric frame facing the wall
+shows no block, so no detector can tell from it which blocks are placed, while the
+allocentric (scene) camera always sees the goal strip and every block. The shaping still
+comes from the encoder's camera; scoring then needs both frames of every step.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from inest_sim_node.config import VIEWS
 
 from .encoders import EncoderConfig, build_encoder, frames_to_tensor, resize_frames
 
@@ -34,9 +40,12 @@ class StageHeadConfig:
     learning_rate: float = 1e-3
     max_demos: int = 200  # the first demonstrations of the training split, enough labelled frames
     seed: int = 0
+    view: str | None = None  # the camera it reads; None: the encoder's
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "widths", tuple(self.widths))  # JSON gives a list
+        if self.view is not None and self.view not in VIEWS:
+            raise ValueError(f"stage head: unknown view {self.view!r}; expected one of {VIEWS}")
         if self.iterations < 0 or min(self.batch_size, self.max_demos) < 1 or self.learning_rate <= 0:
             raise ValueError("stage head: iterations >= 0, batch_size and max_demos >= 1, learning_rate > 0")
 

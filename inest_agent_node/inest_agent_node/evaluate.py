@@ -116,7 +116,8 @@ def plot_learning_curve(
         steps, means, _ = (np.array(column) for column in zip(*reference, strict=True))
         axis.plot(steps, moving_average(means, window), "k--", label="env reward (reference)")
     axis.set(xlabel="environment steps", ylabel="evaluation score", ylim=(0, 1.02), title="evaluation score")
-    axis.legend()
+    if axis.get_legend_handles_labels()[0]:  # a run too short for any evaluation has no curve
+        axis.legend()
     figure.tight_layout()
     figure.savefig(path, dpi=100)
     plt.close(figure)

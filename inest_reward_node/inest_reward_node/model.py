@@ -60,7 +60,10 @@ def build_network(
     raise ValueError(f"unknown method {method!r}; expected one of {METHODS}")
 
 
-RECALIBRATE_HINT = "recalibrate it: `inest-pretrain DATASET --out RUN --resume` (RUN: the run folder holding model/)"
+RECALIBRATE_HINT = (
+    "recalibrate it: `inest-pretrain DATASET --out RUN --resume` (RUN: the run folder holding model/), "
+    "or `inest-pretrain DATASET --out NEW_RUN --recalibrate MODEL` for a model folder on its own"
+)
 
 
 @dataclass

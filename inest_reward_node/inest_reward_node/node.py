@@ -1,7 +1,9 @@
 """`inest-reward-node`: the learned reward served over ROS 2 (a thin adapter over serving.py).
 
 Subscribes to `<stream>/<image_topic>` (sensor_msgs/Image: rgb8, bgr8, rgba8, bgra8, sides within
-`min_image_size`..`max_image_size`) for every stream in `streams`; publishes `<stream>/reward`
+`min_image_size`..`max_image_size`) for every stream in `streams`, and to `<stream>/<stage_image_topic>`
+too when the model's stage head reads a second camera (a scene camera; its frames pair with
+the first camera's by stamp); publishes `<stream>/reward`
 (inest_interfaces/Reward with the image's header), `<stream>/reward/total` (std_msgs/Float32) and
 `<stream>/reward/subtask` (std_msgs/Int32) for plotting tools; serves `<stream>/reset_reward`
 (std_srvs/Trigger: new episode, tracker reset, exploration memories kept); publishes /diagnostics
@@ -51,6 +53,7 @@ class RewardNodeConfig:
     variant: str = ""  # inest | xirl | holdr | reds; empty: the model's natural one for `subtasks`
     streams: tuple[str, ...] = ("",)  # namespaces of the image sources, e.g. ["sim0", "sim1"]
     image_topic: str = "camera/ego/image_raw"
+    stage_image_topic: str = "camera/allo/image_raw"  # only for a stage head that reads a second camera
     max_batch: int = 32  # frames per forward pass at most
     max_pending: int = 4  # per stream; older unscored frames are dropped (and counted)
     queue_depth: int = 1000  # per stream, the subscription's: DDS drops beyond it silently, so it holds a burst
@@ -120,6 +123,13 @@ class RewardNode(Node):
                 lambda msg, i=index: self.on_image(i, msg),
                 QoSProfile(depth=config.queue_depth),
             )
+            if scorer.stage_camera is not None:
+                self.create_subscription(
+                    Image,
+                    namespaced(namespace, config.stage_image_topic),
+                    lambda msg, i=index: self.on_image(i, msg, stage=True),
+                    QoSProfile(depth=config.queue_depth),
+                )
             self.reward_pubs.append(self.create_publisher(Reward, namespaced(namespace, "reward"), qos))
             self.total_pubs.append(self.create_publisher(Float32, namespaced(namespace, "reward/total"), qos))
             self.subtask_pubs.append(self.create_publisher(Int32, namespaced(namespace, "reward/subtask"), qos))
@@ -128,13 +138,20 @@ class RewardNode(Node):
             )
         self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_timer(config.diagnostics_period, self.publish_diagnostics)
+        stage = (
+            f", stage from {[namespaced(ns, config.stage_image_topic) for ns in config.streams]} "
+            f"({scorer.stage_camera} camera)"
+            if scorer.stage_camera
+            else ""
+        )
         self.get_logger().info(
             f"scoring {[namespaced(ns, config.image_topic) for ns in config.streams]} with {config.model} "
             f"({scorer.variant}, {config.subtasks} subtasks, intrinsic {intrinsic.mode}, "
-            f"{reward.shaping} shaping, {reward.tracker} tracker)"
+            f"{reward.shaping} shaping, {reward.tracker} tracker{stage})"
         )
 
-    def on_image(self, stream: int, msg: Image) -> None:
+    def on_image(self, stream: int, msg: Image, stage: bool = False) -> None:
+        """A frame of the encoder's camera, or (`stage`) of the stage head's second camera."""
         received = time.perf_counter()
         config, size = self.config, self.streams.scorer.model.image_size
         try:
@@ -143,9 +160,11 @@ class RewardNode(Node):
                 size, config.resize, config.min_image_size, config.max_image_size,
             )  # fmt: skip
         except ImageRejected as error:
-            self.streams.reject(error.kind, f"stream {stream}: {error}")
+            self.streams.reject(error.kind, f"stream {stream}{' stage camera' if stage else ''}: {error}")
         else:
-            if msg.height != msg.width:
+            if stage:
+                self.streams.submit_stage(stream, stamp_ns(msg.header.stamp), frame)
+            elif msg.height != msg.width:
                 self.log.once(
                     f"aspect:{msg.width}x{msg.height}",
                     f"{msg.width}x{msg.height} frames: "
@@ -153,7 +172,9 @@ class RewardNode(Node):
                     + f", then resized to {size}x{size} (resize:={config.resize})",
                     "info",
                 )
-            self.publish(self.streams.submit(stream, stamp_ns(msg.header.stamp), frame, received, msg.header.frame_id))
+            if not stage:
+                stamp = stamp_ns(msg.header.stamp)
+                self.publish(self.streams.submit(stream, stamp, frame, received, msg.header.frame_id))
         self.write_log()
 
     def write_log(self) -> None:

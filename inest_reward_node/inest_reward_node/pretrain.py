@@ -342,6 +342,12 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         help="training iterations of the pixel stage head (stage_head.py); 0: none",
     )
     parser.add_argument(
+        "--stage-head-image-size",
+        type=int,
+        default=defaults.calibration.stage_head.image_size,
+        help="pixels a side the pixel stage head sees its frames at (default %(default)s)",
+    )
+    parser.add_argument(
         "--stage-head-view",
         choices=("ego", "allo"),
         help="the camera the pixel stage head reads (default: the encoder's --view); allo: the scene "
@@ -394,7 +400,10 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
             wrong_order_episodes=args.wrong_order_episodes,
             clips=tuple(args.clips),
             stage_head=dataclasses.replace(
-                defaults.calibration.stage_head, iterations=args.stage_head_iterations, view=args.stage_head_view
+                defaults.calibration.stage_head,
+                iterations=args.stage_head_iterations,
+                image_size=args.stage_head_image_size,
+                view=args.stage_head_view,
             ),
         ),
         **{name: getattr(args, name) for name in INTEGER_OPTIONS},

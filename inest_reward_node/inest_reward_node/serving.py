@@ -12,6 +12,11 @@ Stamps. A stream's frames are keyed by their stamp and expected in stamp order:
   `reset` starts a new episode on that stream (tracker reset, like `reset_reward`), `reject`
   drops the frame as stale until the clock passes the newest stamp; either is counted and logged.
 Every frame that gets no reward of its own is counted by reason in `ServingStats`.
+
+A stage head that reads a second camera (a scene camera beside the egocentric one,
+`RewardScorer.stage_camera`) gets that camera's frame of the same stamp (`submit_stage`): a
+stream's frames wait, in order, until their partner arrives (a zero-stamped frame takes the
+stream's newest one), so a frame is never scored with another moment's stage evidence.
 """
 
 from __future__ import annotations
@@ -51,6 +56,7 @@ class Pending:
     received: float
     frame_id: str
     republished: bool  # same stamp and pixels as the stream's previous frame: answered from the cache
+    stage_frame: np.ndarray | None = None  # the stage head's camera at the same stamp, once it has come
 
 
 @dataclass
@@ -166,7 +172,34 @@ class StreamScorer:
         self.pending: list[deque[Pending]] = [deque() for _ in range(scorer.num_envs)]
         self.last: list[ScoredFrame | None] = [None] * scorer.num_envs
         self.newest: list[tuple[int, np.ndarray] | None] = [None] * scorer.num_envs  # (stamp, frame) accepted last
+        # the stage head's second camera: its frames by stamp, waiting for their partners
+        self.stage_frames: list[dict[int, np.ndarray]] = [{} for _ in range(scorer.num_envs)]
         self.stats = ServingStats()
+
+    @property
+    def stage_camera(self) -> str | None:
+        """The second camera the scorer's stage head reads (submit_stage), or None."""
+        return self.scorer.stage_camera
+
+    def submit_stage(self, stream: int, stamp: int, frame: np.ndarray) -> None:
+        """The stage head's camera frame of `stamp` on `stream`; kept until its partner is scored.
+        Only the newest few are kept: a partner that never comes must not grow the store."""
+        kept = self.stage_frames[stream]
+        kept[stamp] = fit_square(frame, self.scorer.model.image_size, self.resize)
+        while len(kept) > 4 * self.max_pending:
+            del kept[next(iter(kept))]
+            self.stats.dropped["unpaired"] += 1
+
+    def partner(self, stream: int, item: Pending) -> bool:
+        """Give `item` its stage frame if it needs one and it has come; False while it must wait."""
+        if self.stage_camera is None or item.stage_frame is not None:
+            return True
+        kept = self.stage_frames[stream]
+        if item.stamp == 0 and kept:  # zero stamps cannot pair: the newest scene frame
+            item.stage_frame = kept.pop(next(reversed(kept)))
+        elif item.stamp in kept:
+            item.stage_frame = kept.pop(item.stamp)
+        return item.stage_frame is not None
 
     @property
     def num_pending(self) -> int:
@@ -235,12 +268,16 @@ class StreamScorer:
         for stream, queue in enumerate(self.pending):
             position = 0
             while queue:
-                item = queue.popleft()
+                item = queue[0]
                 last = self.last[stream]
                 if item.republished and last is not None:
+                    queue.popleft()
                     results.append(replace(last, received=item.received, frame_id=item.frame_id, repeated=True))
                     self.stats.repeated += 1
                     continue
+                if not self.partner(stream, item):
+                    break  # it and the stream's later frames wait for its stage frame
+                queue.popleft()
                 waiting.append((position, stream, item))
                 position += 1
         if not waiting:
@@ -250,6 +287,7 @@ class StreamScorer:
             np.stack([item.frame for _, _, item in waiting]),
             envs=np.array([entry[1] for entry in waiting]),
             rounds=np.array([entry[0] for entry in waiting]),
+            stage_frames=None if self.stage_camera is None else np.stack([item.stage_frame for _, _, item in waiting]),
         )
         now = time.perf_counter()
         for index, (_, stream, item) in enumerate(waiting):
@@ -274,7 +312,11 @@ class StreamScorer:
 
     def reset(self, stream: int) -> None:
         """A new episode on one stream: its tracker restarts and any stamp may follow (a restarted
-        simulator's clock starts over); the exploration memories are kept. Flush first."""
+        simulator's clock starts over); the exploration memories are kept. Flush first: what is
+        still pending then waits for a stage frame that did not come, and is dropped (counted)."""
+        if self.pending[stream]:
+            self.stats.dropped["unpaired"] += len(self.pending[stream])
+            self.pending[stream].clear()
         self.scorer.reset(stream)
         self.last[stream] = None
         self.newest[stream] = None

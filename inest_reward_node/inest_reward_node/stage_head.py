@@ -48,6 +48,8 @@ class StageHeadConfig:
             raise ValueError(f"stage head: unknown view {self.view!r}; expected one of {VIEWS}")
         if self.iterations < 0 or min(self.batch_size, self.max_demos) < 1 or self.learning_rate <= 0:
             raise ValueError("stage head: iterations >= 0, batch_size and max_demos >= 1, learning_rate > 0")
+        if self.image_size < 16:
+            raise ValueError(f"stage head: image_size must be at least 16 pixels, got {self.image_size}")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -256,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
     failed = len(metadata["failed_seeds"])
     print(
         f"wrote {len(metadata['episodes']['train'])} train + {len(metadata['episodes']['valid'])} valid "
-        f"demonstrations to {args.out} (the expert missed {failed} layouts, skipped)"
+        f"demonstrations to {args.out} (the expert missed {failed} layout{'' if failed == 1 else 's'}, skipped)"
     )
     return 0
 

@@ -1,0 +1,154 @@
+"""A stage head on the scene (allocentric) camera beside the egocentric encoder: fitted by
+`inest-pretrain --recalibrate`, fed both cameras' frames in training, in the quality report and
+in the reward node, whose streams pair the two cameras' frames by stamp."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from inest_agent_node.envs import LEARNED_STAGE, STAGE_FRAME_KEY, build_env
+from inest_interfaces.msg import Reward
+from inest_reward_node.data import load_demos
+from inest_reward_node.intrinsic import IntrinsicConfig
+from inest_reward_node.model import load_model
+from inest_reward_node.quality import evaluate, load_stage_frames
+from inest_reward_node.rewards import RewardScorer
+from inest_reward_node.serving import StreamScorer
+from inest_reward_node.stage_head import StageHeadConfig
+from inest_reward_node.stages import RewardConfig
+from test_graph import reward_node_args, sim_node_args
+
+from inest_agent_node.config import TrainConfig
+from inest_reward_node import pretrain
+
+PIXELS = RewardConfig(stage_evidence="pixels")  # the default confirmed tracker, reading the head
+
+
+@pytest.fixture(scope="module")
+def scene_model(tiny_tcc_run, tmp_path_factory):
+    """The tiny model's encoder, recalibrated with a stage head on the allocentric camera."""
+    config, run_dir = tiny_tcc_run
+    out = tmp_path_factory.mktemp("scene")
+    arguments = [
+        config.dataset,
+        "--out",
+        str(out),
+        "--recalibrate",
+        str(run_dir / "model"),
+        "--stage-head-view",
+        "allo",
+        "--stage-head-iterations",
+        "30",
+        "--random-episodes",
+        "3",
+        "--wrong-order-episodes",
+        "2",
+    ]
+    assert pretrain.main(arguments) == 0
+    return out / "model", arguments
+
+
+def demo_frames(dataset, view: str, limit: int = 1) -> list[np.ndarray]:
+    return [demo.frames for demo in load_demos(dataset, "valid", view, 48, limit, progress_bar=False)]
+
+
+def test_recalibration_keeps_the_encoder_and_fits_a_head_on_the_scene_camera(tiny_tcc_run, scene_model, capsys):
+    config, run_dir = tiny_tcc_run
+    folder, arguments = scene_model
+    source, model = load_model(run_dir / "model"), load_model(folder)
+    frames = demo_frames(config.dataset, "ego")[0]
+    np.testing.assert_array_equal(source.embed(frames), model.embed(frames))  # the same trained encoder
+    np.testing.assert_array_equal(source.goals(3).goals, model.goals(3).goals)  # same demonstrations
+    assert model.view == "ego" and model.goals(3).stage_head.config.view == "allo"
+    assert model.metadata.training["recalibrated_from"] == str(run_dir / "model")
+    assert model.metadata.training["iterations"] == source.metadata.training["iterations"]
+    capsys.readouterr()
+    assert pretrain.main(arguments) == 2  # the folder holds a model already: refused, nothing overwritten
+    error = capsys.readouterr().err
+    assert "already holds a model" in error and error.count("\n") == 1
+    with pytest.raises(ValueError, match="unknown view 'top'"):
+        StageHeadConfig(view="top")
+
+
+def test_the_scorer_needs_the_scene_frame_of_every_step(tiny_tcc_run, scene_model):
+    config, _ = tiny_tcc_run
+    model = load_model(scene_model[0])
+    ego, allo = demo_frames(config.dataset, "ego")[0], demo_frames(config.dataset, "allo")[0]
+    scorer = RewardScorer(model, 3, num_envs=2, config=PIXELS)
+    assert scorer.stage_camera == "allo"
+    assert RewardScorer(model, 3).stage_camera is None  # the embedding's classifier reads no second camera
+    with pytest.raises(ValueError, match="reads the 'allo' camera"):
+        scorer.score_frames(ego[:2])
+    scorer.score_frames(ego[:2], stage_frames=allo[:2])
+    head = model.goals(3).stage_head
+    assert not np.allclose(head.at_least(ego), head.at_least(allo))  # it does look at the frames it is given
+
+
+def test_training_and_the_quality_report_see_both_cameras(tiny_tcc_run, scene_model, tmp_path):
+    config, _ = tiny_tcc_run
+    folder = scene_model[0]
+    train = TrainConfig(
+        reward="inest", model=str(folder), intrinsic=IntrinsicConfig(mode="none"), learned_reward=PIXELS
+    )
+    env = build_env(train, num_envs=2, evaluation=True)
+    env.reset()
+    for _ in range(3):
+        _, rewards, _, infos = env.step(np.zeros((2, 3), np.float32))
+    assert np.isfinite(rewards).all() and all(LEARNED_STAGE in info and STAGE_FRAME_KEY not in info for info in infos)
+    model = load_model(folder)
+    options = {"config": PIXELS}
+    demos = load_demos(config.dataset, "valid", "ego", 48, 1, progress_bar=False)
+    frames = load_stage_frames(model, [3], options, config.dataset, "valid", 1, progress_bar=False)
+    assert load_stage_frames(model, [3], None, config.dataset, "valid", 1, progress_bar=False) is None
+    with pytest.raises(ValueError, match="reads the 'allo' camera"):
+        evaluate(model, demos, [3], tmp_path / "q", False, options, negative_episodes=1)
+    report = evaluate(model, demos, [3], tmp_path / "q", False, options, negative_episodes=1, stage_frames=frames)
+    assert report["schemes"]["3"]["scorer"]["config"]["stage_evidence"] == "pixels"
+    assert set(report["schemes"]["3"]["false_completion_any"]) == {"random", "wrong_order"}
+
+
+def test_a_stream_waits_for_the_scene_frame_of_the_same_stamp(tiny_tcc_run, scene_model):
+    config, _ = tiny_tcc_run
+    model = load_model(scene_model[0])
+    ego, allo = demo_frames(config.dataset, "ego")[0][:4], demo_frames(config.dataset, "allo")[0][:4]
+    streams = StreamScorer(RewardScorer(model, 3, config=PIXELS))
+    assert streams.stage_camera == "allo"
+    streams.submit(0, 1, ego[0])
+    streams.submit(0, 2, ego[1])
+    streams.submit_stage(0, 2, allo[1])
+    assert streams.flush() == []  # stamp 1 has no scene frame yet, and stamp 2 comes after it
+    streams.submit_stage(0, 1, allo[0])
+    scored = streams.flush()
+    assert [frame.stamp for frame in scored] == [1, 2]
+    expected = RewardScorer(model, 3, config=PIXELS).score_frames(
+        ego[:2], envs=np.zeros(2, int), rounds=np.arange(2), stage_frames=allo[:2]
+    )
+    np.testing.assert_allclose([frame.total for frame in scored], expected.total, rtol=1e-5)
+    streams.submit(0, 3, ego[2])  # its scene frame never comes: dropped at the episode's reset, counted
+    assert streams.flush() == []
+    streams.reset(0)
+    assert streams.num_pending == 0 and streams.take_stats()["dropped_unpaired"] == 1
+
+
+def test_the_reward_node_pairs_the_simulators_two_cameras(graph, scene_model):
+    graph.start("sim0", *sim_node_args("sim0", "-p", "mode:=realtime"))
+    graph.start(
+        "reward", *reward_node_args(scene_model[0], "-p", "streams:=[sim0]", "-p", "reward.stage_evidence:=pixels")
+    )
+    rclpy.init(domain_id=int(graph.env["ROS_DOMAIN_ID"]))
+    try:
+        node = rclpy.create_node("watcher")
+        rewards: list[Reward] = []
+        node.create_subscription(Reward, "sim0/reward", rewards.append, 50)
+        deadline = time.monotonic() + 90
+        while len(rewards) < 8 and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.05)
+    finally:
+        rclpy.shutdown()
+    assert len(rewards) >= 8, graph.log("reward")
+    stamps = [(r.header.stamp.sec, r.header.stamp.nanosec) for r in rewards]
+    assert stamps == sorted(set(stamps)) and all(np.isfinite(r.total) for r in rewards)
+    assert "stage from ['sim0/camera/allo/image_raw'] (allo camera)" in graph.log("reward")

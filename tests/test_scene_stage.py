@@ -42,6 +42,8 @@ def scene_model(tiny_tcc_run, tmp_path_factory):
         "allo",
         "--stage-head-iterations",
         "30",
+        "--stage-head-image-size",
+        "32",
         "--random-episodes",
         "3",
         "--wrong-order-episodes",
@@ -62,7 +64,8 @@ def test_recalibration_keeps_the_encoder_and_fits_a_head_on_the_scene_camera(tin
     frames = demo_frames(config.dataset, "ego")[0]
     np.testing.assert_array_equal(source.embed(frames), model.embed(frames))  # the same trained encoder
     np.testing.assert_array_equal(source.goals(3).goals, model.goals(3).goals)  # same demonstrations
-    assert model.view == "ego" and model.goals(3).stage_head.config.view == "allo"
+    head = model.goals(3).stage_head.config
+    assert model.view == "ego" and head.view == "allo" and head.image_size == 32
     assert model.metadata.training["recalibrated_from"] == str(run_dir / "model")
     assert model.metadata.training["iterations"] == source.metadata.training["iterations"]
     capsys.readouterr()

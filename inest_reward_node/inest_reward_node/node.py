@@ -162,18 +162,18 @@ class RewardNode(Node):
         except ImageRejected as error:
             self.streams.reject(error.kind, f"stream {stream}{' stage camera' if stage else ''}: {error}")
         else:
+            stamp = stamp_ns(msg.header.stamp)
             if stage:
-                self.streams.submit_stage(stream, stamp_ns(msg.header.stamp), frame)
-            elif msg.height != msg.width:
-                self.log.once(
-                    f"aspect:{msg.width}x{msg.height}",
-                    f"{msg.width}x{msg.height} frames: "
-                    + ("centre-cropped to the training camera's square" if config.resize == "crop" else "squashed")
-                    + f", then resized to {size}x{size} (resize:={config.resize})",
-                    "info",
-                )
-            if not stage:
-                stamp = stamp_ns(msg.header.stamp)
+                self.streams.submit_stage(stream, stamp, frame)
+            else:
+                if msg.height != msg.width:
+                    self.log.once(
+                        f"aspect:{msg.width}x{msg.height}",
+                        f"{msg.width}x{msg.height} frames: "
+                        + ("centre-cropped to the training camera's square" if config.resize == "crop" else "squashed")
+                        + f", then resized to {size}x{size} (resize:={config.resize})",
+                        "info",
+                    )
                 self.publish(self.streams.submit(stream, stamp, frame, received, msg.header.frame_id))
         self.write_log()
 

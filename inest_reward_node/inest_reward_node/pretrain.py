@@ -230,6 +230,18 @@ class Pretrainer:
         return load_model(self.run_dir / MODEL_DIR)  # exactly the model a later load gives
 
 
+def refuse_unfit_clips(config: PretrainConfig) -> None:
+    """Read every clip file before any work, so that one that does not fit fails first, not after."""
+    for path in config.calibration.clips:
+        load_clips(path, config.view, config.encoder.image_size)
+
+
+def load_split(config: PretrainConfig, split: str, progress_bar: bool) -> list[Demo]:
+    """One split of `config.dataset` in the encoder's camera and size, within the split's limit."""
+    limit = config.train_limit if split == "train" else config.valid_limit
+    return load_demos(config.dataset, split, config.view, config.encoder.image_size, limit, progress_bar)
+
+
 def recalibrate(
     config: PretrainConfig, source: str | Path, run_dir: str | Path, progress_bar: bool = True
 ) -> RewardModel:
@@ -249,12 +261,8 @@ def recalibrate(
     out = Path(run_dir) / MODEL_DIR
     if (out / "model.json").exists():
         raise FileExistsError(f"{out} already holds a model; choose another --out")
-    for path in config.calibration.clips:
-        load_clips(path, config.view, config.encoder.image_size)
-    demos = load_demos(
-        config.dataset, "train", config.view, config.encoder.image_size, config.train_limit, progress_bar
-    )
-    subtasks = calibrate(trained, demos, config, progress_bar)
+    refuse_unfit_clips(config)
+    subtasks = calibrate(trained, load_split(config, "train", progress_bar), config, progress_bar)
     calibrated = dataclasses.replace(
         model_metadata(config, int(metadata.training.get("iterations", 0)), subtasks),
         training={**metadata.training, "recalibrated_from": str(source)},
@@ -266,12 +274,9 @@ def recalibrate(
 def pretrain(
     config: PretrainConfig, run_dir: str | Path, resume: bool = False, progress_bar: bool = True
 ) -> RewardModel:
-    size = config.encoder.image_size
-    for path in config.calibration.clips:  # refuse a clip file that does not fit before training, not after
-        load_clips(path, config.view, size)
+    refuse_unfit_clips(config)
     trainer = Pretrainer(config, run_dir, resume)
-    train = load_demos(config.dataset, "train", config.view, size, config.train_limit, progress_bar)
-    valid = load_demos(config.dataset, "valid", config.view, size, config.valid_limit, progress_bar)
+    train, valid = load_split(config, "train", progress_bar), load_split(config, "valid", progress_bar)
     if len(train) < 2:
         raise DatasetError(f"{config.dataset} has {len(train)} training demonstrations; pretraining needs at least 2")
     return trainer.train(train, valid, progress_bar)
@@ -416,14 +421,13 @@ def main(argv: list[str] | None = None) -> int:
         config, args = parse_args(argv)
         if args.recalibrate:
             model = recalibrate(config, args.recalibrate, args.out)
-            config = dataclasses.replace(config, method=model.method, view=model.view)
         else:
             model = pretrain(config, args.out, resume=args.resume)
     except (DatasetError, FileExistsError, ValueError, ModelError) as error:  # ClipError is a ValueError
         print(f"inest-pretrain: {error}", file=sys.stderr)
         return 2
     schemes = ", ".join(f"{scheme} subtasks" for scheme in sorted(model.subtasks))
-    print(f"wrote {Path(args.out) / MODEL_DIR} ({config.method}, {config.view}, goals for {schemes})")
+    print(f"wrote {Path(args.out) / MODEL_DIR} ({model.method}, {model.view}, goals for {schemes})")
     return 0
 
 

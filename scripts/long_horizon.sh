@@ -23,16 +23,16 @@ CONFIG=inest_agent_node/config/train.yaml
 declare -A METHODS=(
   [oracle]="--reward env --total-steps 300000"
   [oracle-state-obs]="--reward env --observation state --total-steps 300000"
-  [inest3-embedding]="--reward inest --model $MODEL --intrinsic embedding --total-steps 300000"
-  [inest3-none]="--reward inest --model $MODEL --intrinsic none --total-steps 300000"
-  [inest3-embedding-state-obs]="--reward inest --model $MODEL --intrinsic embedding --observation state --total-steps 300000"
+  [inest3-embedding]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --total-steps 300000"
+  [inest3-none]="--reward inest --model $MODEL --intrinsic none --stage-evidence embedding --total-steps 300000"
+  [inest3-embedding-state-obs]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --observation state --total-steps 300000"
   [inest3-pixel-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000"
   [inest3-pixel-embedding]="--reward inest --model $PIXEL_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
   [inest3-pixel-classifier-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --tracker classifier --total-steps 300000"
   [inest3-scene-none]="--reward inest --model $SCENE_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000"
   [inest3-scene-embedding]="--reward inest --model $SCENE_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
   # DIAGNOSTIC, never a method: the learned shaping with the stage and bonus of the true progress
-  [inest3-privileged-stage]="--reward inest --model $MODEL --intrinsic embedding --stage-source privileged --total-steps 300000"
+  [inest3-privileged-stage]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --stage-source privileged --total-steps 300000"
 )
 collect_only=false
 [ "${1:-}" = "--collect" ] && { collect_only=true; shift; }

@@ -51,8 +51,11 @@ def test_heads_are_saved_with_the_model_and_used_only_when_asked(tiny_tcc_run, t
     assert parts.total.shape == (3,)
     with pytest.raises(ValueError, match="needs every frame's stage_evidence"):
         scorer.score_embeddings(first.embed(frames))
-    assert RewardScorer(first, 3, num_envs=3).stage_evidence(frames) is None  # the default reads the embedding
+    assert RewardScorer(first, 3, num_envs=3).stage_evidence(frames) is not None  # the default reads pixels
+    embedding = RewardConfig(stage_evidence="embedding")  # the embedding's classifier needs no frames
+    assert RewardScorer(first, 3, num_envs=3, config=embedding).stage_evidence(frames) is None
     first.goals(3).stage_head = None  # a model calibrated before the head existed
+    assert RewardScorer(first, 3, num_envs=3).evidence == "embedding"  # auto falls back to the classifier
     with pytest.raises(ModelError, match=r"no pixel stage head .* recalibrate"):
         RewardScorer(first, 3, config=pixels)
     without = tmp_path / "model"

@@ -240,7 +240,9 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         "--stage-source", choices=STAGE_SOURCES, help="privileged: stage and bonus from the true progress (diagnostic)"
     )
     parser.add_argument(
-        "--stage-evidence", choices=STAGE_EVIDENCE, help="what the classifier trackers read: embedding or pixels"
+        "--stage-evidence",
+        choices=STAGE_EVIDENCE,
+        help="what the classifier trackers read: auto (the pixel stage head if the model has one), pixels, embedding",
     )
     parser.add_argument("--oracle", choices=ORACLE_REWARDS, help="the simulator's reward, used by --reward env")
     for name in INTEGER_FLAGS:

@@ -138,6 +138,7 @@ class RewardNode(Node):
             )
         self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_timer(config.diagnostics_period, self.publish_diagnostics)
+        evidence = f" reading {scorer.evidence}" if scorer.evidence else ""
         stage = (
             f", stage from {[namespaced(ns, config.stage_image_topic) for ns in config.streams]} "
             f"({scorer.stage_camera} camera)"
@@ -147,7 +148,7 @@ class RewardNode(Node):
         self.get_logger().info(
             f"scoring {[namespaced(ns, config.image_topic) for ns in config.streams]} with {config.model} "
             f"({scorer.variant}, {config.subtasks} subtasks, intrinsic {intrinsic.mode}, "
-            f"{reward.shaping} shaping, {reward.tracker} tracker{stage})"
+            f"{reward.shaping} shaping, {reward.tracker} tracker{evidence}{stage})"
         )
 
     def on_image(self, stream: int, msg: Image, stage: bool = False) -> None:

@@ -355,8 +355,9 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
     parser.add_argument(
         "--stage-head-view",
         choices=("ego", "allo"),
-        help="the camera the pixel stage head reads (default: the encoder's --view); allo: the scene "
-        "camera that always sees the goal strip",
+        default=defaults.calibration.stage_head.view,
+        help="the camera the pixel stage head reads (default %(default)s: the scene camera, which always "
+        "sees the goal strip and every block; ego for a dataset or robot with the wrist camera only)",
     )
     parser.add_argument(
         "--reds-subtasks",

@@ -520,6 +520,7 @@ def describe_scorer(
     return {
         "variant": scorer.variant,
         "config": dataclasses.asdict(config) if dataclasses.is_dataclass(config) else None,
+        "stage_evidence": getattr(scorer, "evidence", None),  # "auto" resolved for this model
     }
 
 

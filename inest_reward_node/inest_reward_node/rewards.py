@@ -262,10 +262,15 @@ class RewardScorer:
         if self.reward.uses_segments or (config.reopens and tracks):
             self.start_embeddings = self.goals.require_start_embeddings()
         self.classifier = self.stage_head = None
-        if tracks and config.uses_classifier and config.stage_evidence == "pixels":
+        evidence = config.stage_evidence  # "auto": the pixel stage head if the model has one
+        if evidence == "auto":
+            evidence = "pixels" if self.goals.stage_head is not None else "embedding"
+        if tracks and config.uses_classifier and evidence == "pixels":
             self.stage_head = self.goals.require_stage_head()
         elif tracks and config.uses_classifier:
             self.classifier = self.goals.require_stage_classifier()
+        # what the tracker reads its stage from: "pixels", "embedding", or None (no classifier)
+        self.evidence = "pixels" if self.stage_head else "embedding" if self.classifier else None
         # the camera the stage head reads when it is not the encoder's (StageHeadConfig.view)
         head_view = self.stage_head.config.view if self.stage_head else None
         self.stage_camera = head_view if head_view not in (None, model.view) else None
@@ -307,9 +312,12 @@ class RewardScorer:
             self.trackers[index].reset()
             self.steps_since_switch[index] = -1
 
-    def score(self, frames: np.ndarray, states: np.ndarray | None = None) -> RewardParts:
-        """frames: (N, H, W, 3) uint8, one per environment, in environment order."""
-        return self.score_frames(frames, states)
+    def score(
+        self, frames: np.ndarray, states: np.ndarray | None = None, stage_frames: np.ndarray | None = None
+    ) -> RewardParts:
+        """frames: (N, H, W, 3) uint8, one per environment, in environment order; `stage_frames`
+        the same steps seen by `stage_camera` when the stage head reads another camera."""
+        return self.score_frames(frames, states, stage_frames=stage_frames)
 
     def score_frames(
         self,

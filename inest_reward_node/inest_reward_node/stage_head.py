@@ -40,7 +40,9 @@ class StageHeadConfig:
     learning_rate: float = 1e-3
     max_demos: int = 200  # the first demonstrations of the training split, enough labelled frames
     seed: int = 0
-    view: str | None = None  # the camera it reads; None: the encoder's
+    # the camera it reads; None: the encoder's. The scene camera by default: it always sees the
+    # strip and every block (docs/reward-signal.md, "A stage detector on the scene camera")
+    view: str | None = "allo"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "widths", tuple(self.widths))  # JSON gives a list

@@ -42,7 +42,7 @@ from .shaping import StageTracker
 SHAPINGS = ("thesis", "raw", "progress", "segment")
 TRACKERS = ("threshold", "reopening", "classifier", "confirmed")
 STAGE_SOURCES = ("tracker", "privileged")
-STAGE_EVIDENCE = ("embedding", "pixels")
+STAGE_EVIDENCE = ("auto", "pixels", "embedding")
 PROGRESS_FIELD = STATE_FIELDS.index("ordered_progress")  # k / 3 in the state vector
 REOPEN_BELOW = 0.5  # segment closeness of the reopened subtask: the frame looks like its first half
 
@@ -80,8 +80,10 @@ class RewardConfig:
     hold_steps: frames a tracker's test must hold to move the stage; 0: the model's
       (ShapingConfig.hold_steps, what its thresholds were calibrated for).
     stage_evidence: where the classifier and confirmed trackers read P(stage >= j) from:
-      "embedding" (the stage classifier on the frame's embedding) or "pixels" (the pixel stage
-      head on the frame itself, stage_head.py; the embedding does not keep "block in the strip").
+      "pixels" (the pixel stage head on the frame itself, stage_head.py, fitted on the scene
+      camera by default; the embedding does not keep "block in the strip"), "embedding" (the
+      stage classifier on the frame's embedding), or "auto" (default): pixels when the model
+      has a pixel stage head for the scheme, else embedding (models fitted without one).
     stage_confidence: the classifier says "stage >= j" when it gives P(stage >= j) >= this.
     confirm_window: frames after the threshold test has held within which the classifier must agree.
     intrinsic_cap: the weighted novelty bonus (after the post-switch boost) is clipped to at most
@@ -91,7 +93,7 @@ class RewardConfig:
     shaping: str = "segment"
     tracker: str = "confirmed"
     stage_source: str = "tracker"
-    stage_evidence: str = "embedding"
+    stage_evidence: str = "auto"
     hold_steps: int = 0
     stage_confidence: float = 0.5
     confirm_window: int = 20

@@ -24,7 +24,8 @@ from test_graph import reward_node_args, sim_node_args
 from inest_agent_node.config import TrainConfig
 from inest_reward_node import pretrain
 
-PIXELS = RewardConfig(stage_evidence="pixels")  # the default confirmed tracker, reading the head
+PIXELS = RewardConfig(stage_evidence="pixels")  # the confirmed tracker, reading the head (what auto resolves to)
+EMBEDDING = RewardConfig(stage_evidence="embedding")
 
 
 @pytest.fixture(scope="module")
@@ -82,7 +83,8 @@ def test_the_scorer_needs_the_scene_frame_of_every_step(tiny_tcc_run, scene_mode
     ego, allo = demo_frames(config.dataset, "ego")[0], demo_frames(config.dataset, "allo")[0]
     scorer = RewardScorer(model, 3, num_envs=2, config=PIXELS)
     assert scorer.stage_camera == "allo"
-    assert RewardScorer(model, 3).stage_camera is None  # the embedding's classifier reads no second camera
+    assert RewardScorer(model, 3).stage_camera == "allo"  # the default (auto) reads the head when there is one
+    assert RewardScorer(model, 3, config=EMBEDDING).stage_camera is None  # the classifier reads no second camera
     with pytest.raises(ValueError, match="reads the 'allo' camera"):
         scorer.score_frames(ego[:2])
     scorer.score_frames(ego[:2], stage_frames=allo[:2])
@@ -105,7 +107,8 @@ def test_training_and_the_quality_report_see_both_cameras(tiny_tcc_run, scene_mo
     options = {"config": PIXELS}
     demos = load_demos(config.dataset, "valid", "ego", 48, 1, progress_bar=False)
     frames = load_stage_frames(model, [3], options, config.dataset, "valid", 1, progress_bar=False)
-    assert load_stage_frames(model, [3], None, config.dataset, "valid", 1, progress_bar=False) is None
+    embedding = {"config": EMBEDDING}
+    assert load_stage_frames(model, [3], embedding, config.dataset, "valid", 1, progress_bar=False) is None
     with pytest.raises(ValueError, match="reads the 'allo' camera"):
         evaluate(model, demos, [3], tmp_path / "q", False, options, negative_episodes=1)
     report = evaluate(model, demos, [3], tmp_path / "q", False, options, negative_episodes=1, stage_frames=frames)

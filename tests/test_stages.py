@@ -9,7 +9,7 @@ import shutil
 import numpy as np
 import pytest
 from inest_reward_node.intrinsic import IntrinsicConfig
-from inest_reward_node.model import MODEL_FILE, ModelError, load_model
+from inest_reward_node.model import MODEL_FILE, STAGE_HEADS_FILE, ModelError, load_model
 from inest_reward_node.rewards import RewardScorer, goal_distances
 from inest_reward_node.stages import (
     ClassifierTracker,
@@ -230,10 +230,12 @@ def test_a_model_calibrated_before_reward_configs_loads_and_names_the_fix(tiny_t
     shutil.copytree(run_dir / "model", old)
     metadata = json.loads((old / MODEL_FILE).read_text())
     for goals in metadata["subtasks"].values():
-        del goals["start_distances"], goals["start_embeddings"], goals["stage_classifier"]
+        del goals["start_distances"], goals["start_embeddings"], goals["stage_classifier"], goals["stage_head"]
     (old / MODEL_FILE).write_text(json.dumps(metadata))
+    (old / STAGE_HEADS_FILE).unlink()
     model = load_model(old, scheme=3)
     assert model.goals(3).start_distances is None and model.goals(3).stage_classifier is None
+    assert model.goals(3).stage_head is None
     RewardScorer(model, 3, config=RewardConfig("thesis", "threshold"))  # today's reward needs none of them
     for config, missing in (
         (RewardConfig(), "start embeddings"),

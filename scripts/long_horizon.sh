@@ -9,6 +9,7 @@
 # Environment: INEST_MODEL (reward model folder, default results/long-horizon/reward-model),
 # INEST_PIXEL_MODEL (the same with pixel stage heads, default results/long-horizon/reward-model-pixel),
 # INEST_SCENE_MODEL (the same encoder with scene-camera stage heads, default results/long-horizon/reward-model-scene),
+# INEST_SCENE96_MODEL (the same with 96 px scene-camera stage heads, default results/long-horizon/reward-model-scene96),
 # INEST_SEEDS (default "0 1 2"), INEST_PARALLEL (default 2).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -17,6 +18,7 @@ BIN="${INEST_VENV:-$ROOT/.venv}/bin"
 MODEL="${INEST_MODEL:-results/long-horizon/reward-model}"
 PIXEL_MODEL="${INEST_PIXEL_MODEL:-results/long-horizon/reward-model-pixel}"  # + pixel stage heads
 SCENE_MODEL="${INEST_SCENE_MODEL:-results/long-horizon/reward-model-scene}"  # + stage heads on the allocentric camera
+SCENE96_MODEL="${INEST_SCENE96_MODEL:-results/long-horizon/reward-model-scene96}"  # the same heads at 96 px
 RUNS=runs/long-horizon
 CONFIG=inest_agent_node/config/train.yaml
 
@@ -31,6 +33,7 @@ declare -A METHODS=(
   [inest3-pixel-classifier-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --tracker classifier --total-steps 300000"
   [inest3-scene-none]="--reward inest --model $SCENE_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000"
   [inest3-scene-embedding]="--reward inest --model $SCENE_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
+  [inest3-scene96-embedding]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
   # DIAGNOSTIC, never a method: the learned shaping with the stage and bonus of the true progress
   [inest3-privileged-stage]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --stage-source privileged --total-steps 300000"
 )

@@ -94,12 +94,12 @@ def main() -> None:
                         intrinsic=IntrinsicConfig(mode="none"),
                         sac=sac,
                         threads=GRAPH_THREADS,
+                        overlap_updates=OVERLAP,
                         **common,
                     ),
                     f"{root}/graph",
                     progress_bar=False,
                     env=graph_env,
-                    overlap_updates=OVERLAP,
                 ),
             }
             speeds = trainer_speeds(trainers)

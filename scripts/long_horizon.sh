@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The long-horizon result set: every cell below trained in runs/long-horizon/<method>/seed<N>/,
-# two at a time on one torch/JAX thread each; a killed run resumes from its last checkpoint when
+# two at a time on one torch/JAX thread each (INEST_PARALLEL, INEST_THREADS); a killed run resumes from its last checkpoint when
 # this is run again, and a finished one is skipped. Then the small files of every run (results,
 # config, plots; no checkpoints) are copied to results/long-horizon/ with summary.json and
 # learning_curves.png (inest-summarise).
@@ -10,7 +10,7 @@
 # INEST_PIXEL_MODEL (the same with pixel stage heads, default results/long-horizon/reward-model-pixel),
 # INEST_SCENE_MODEL (the same encoder with scene-camera stage heads, default results/long-horizon/reward-model-scene),
 # INEST_SCENE96_MODEL (the same with 96 px scene-camera stage heads, default results/long-horizon/reward-model-scene96),
-# INEST_SEEDS (default "0 1 2"), INEST_PARALLEL (default 2).
+# INEST_SEEDS (default "0 1 2"), INEST_PARALLEL (default 2), INEST_THREADS (torch/JAX threads per run, default 1).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -34,6 +34,9 @@ declare -A METHODS=(
   [inest3-scene-none]="--reward inest --model $SCENE_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000"
   [inest3-scene-embedding]="--reward inest --model $SCENE_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
   [inest3-scene96-embedding]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
+  # the same at 1M steps, evaluated every 50k, updates on a second thread: the wall-clock check of
+  # a 1M-step run (INEST_PARALLEL=1, one thread: the updates take one core, the environments the other)
+  [inest3-scene96-embedding-1m]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 1000000 --eval-every 50000 --overlap-updates"
   # DIAGNOSTIC, never a method: the learned shaping with the stage and bonus of the true progress
   [inest3-privileged-stage]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --stage-source privileged --total-steps 300000"
 )
@@ -55,7 +58,7 @@ run_cell() {
   [ -f "$out/config.json" ] && resume=(--resume)
   mkdir -p "$RUNS/$method"
   # shellcheck disable=SC2086  # METHODS entries are flag lists
-  "$BIN/inest-train" --config "$CONFIG" --out "$out" --seed "$seed" --threads 1 \
+  "$BIN/inest-train" --config "$CONFIG" --out "$out" --seed "$seed" --threads "${INEST_THREADS:-1}" \
     ${METHODS[$method]} "${resume[@]}" >"$out.log" 2>&1 \
     || echo "long_horizon: $method seed $seed failed; see $out.log" >&2
 }

@@ -107,6 +107,8 @@ def tiny_config(total_steps: int, observation: str = "stage") -> TrainConfig:
 def test_interrupted_training_resumes_with_its_step_counter_and_buffer(tmp_path):
     first = Trainer(tiny_config(400), tmp_path / "run", progress_bar=False)
     first.train()  # stands in for a run killed after its checkpoint at 400 steps
+    first_seconds = json.loads((tmp_path / "run" / "checkpoint" / "timing.json").read_text())["training_s"]
+    assert first_seconds > 0
     with pytest.raises(FileExistsError, match="--resume"):
         Trainer(tiny_config(600), tmp_path / "run", progress_bar=False)
     resumed = Trainer(tiny_config(600), tmp_path / "run", resume=True, progress_bar=False)
@@ -118,6 +120,9 @@ def test_interrupted_training_resumes_with_its_step_counter_and_buffer(tmp_path)
     assert [point[0] for point in resumed.history] == [200, 400, 600]
     assert result.episodes == 2
     assert (tmp_path / "run" / "learning_curve.png").exists()
+    wall_clock = json.loads((tmp_path / "run" / "results.json").read_text())["wall_clock_s"]
+    assert wall_clock["training"] > round(first_seconds, 2)  # both sessions' training, counted once each
+    assert wall_clock["final_evaluation"] > 0
 
 
 def test_config_validation_and_yaml(tmp_path):
@@ -222,13 +227,16 @@ def test_overlapped_updates_run_as_many_updates_on_the_same_transitions(tmp_path
     config = tiny_config(300, observation="state")
     plain = Trainer(config, tmp_path / "plain", progress_bar=False)
     env = UpdatesWhileStepping(make_vec_env(config.num_envs, EnvConfig(reward=config.oracle), config.seed))
-    overlapped = Trainer(config, tmp_path / "overlapped", progress_bar=False, env=env, overlap_updates=True)
+    overlapping = dataclasses.replace(config, overlap_updates=True)
+    overlapped = Trainer(overlapping, tmp_path / "overlapped", progress_bar=False, env=env)
     env.model = overlapped.model  # the trainer hands the env its updates (while_waiting)
     with pytest.raises(ValueError, match="overlapped updates need an env"):
-        Trainer(config, tmp_path / "nowhere", progress_bar=False, overlap_updates=True)  # in-process envs never wait
+        Trainer(overlapping, tmp_path / "nowhere", progress_bar=False, env=make_vec_env(1, EnvConfig(), 0))
+    threaded = Trainer(overlapping, tmp_path / "threaded", progress_bar=False)  # in process: a second thread
     plain.train()
     overlapped.train()
-    assert overlapped.model._n_updates == plain.model._n_updates > 0
+    threaded.train()
+    assert overlapped.model._n_updates == threaded.model._n_updates == plain.model._n_updates > 0
     # an update deferred into the next step still samples only the transitions stored before it
     first_update = config.sac.learning_starts // config.num_envs
     assert env.buffer_sizes[0] == first_update + 1

@@ -117,6 +117,24 @@ def test_interrupted_collection_resumes(tmp_path):
     DemoDataset(root).verify()
 
 
+def test_the_content_hash_names_the_demonstrations_not_the_files(tmp_path):
+    """Two collections of the same seeds hash alike, even without recorded content hashes."""
+    small = CollectConfig(episodes=2, valid_fraction=0.5, image_size=32, workers=1)
+    first, second = tmp_path / "first", tmp_path / "second"
+    for root in (first, second):
+        collect_dataset(root, small, show_progress=False)
+    assert DemoDataset(first).content_hash() == DemoDataset(second).content_hash()
+    meta = json.loads((second / "metadata.json").read_text())
+    for entries in meta["episodes"].values():
+        for entry in entries:
+            del entry["content_sha256"]  # as a dataset collected before they were recorded
+    (second / "metadata.json").write_text(json.dumps(meta))
+    assert DemoDataset(first).content_hash() == DemoDataset(second).content_hash()
+    other = CollectConfig(episodes=2, valid_fraction=0.5, image_size=32, workers=1, seed=7)
+    collect_dataset(tmp_path / "other", other, show_progress=False)
+    assert DemoDataset(tmp_path / "other").content_hash() != DemoDataset(first).content_hash()
+
+
 def test_refuses_a_non_empty_foreign_folder(tmp_path):
     (tmp_path / "notes.txt").write_text("mine")
     with pytest.raises(DatasetError, match="not empty"):

@@ -95,6 +95,10 @@ class TrainConfig:
     checkpoint_every: int = 20_000
     seed: int = 0
     threads: int = 2
+    # run each update while the environments take the next step (learners.OverlappedUpdatesMixin;
+    # the action then comes from a policy one update older): in process on a second thread, over
+    # the graph while the simulators and the reward node work
+    overlap_updates: bool = False
     sac: SacConfig = field(default_factory=SacConfig)
 
     def __post_init__(self) -> None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -218,6 +219,42 @@ class StageObservationVecEnv(VecEnvWrapper):
             infos[index]["terminal_observation"] = stage_observation(terminal, stages[index], self.num_subtasks)[0]
             stages[index] = 0  # the observation returned is the next episode's first
         return stage_observation(observations, stages, self.num_subtasks), rewards, dones, infos
+
+
+class ConcurrentUpdatesVecEnv(VecEnvWrapper):
+    """In-process environments that run `while_waiting` (an overlapped learner's deferred
+    updates, learners.OverlappedUpdatesMixin) on a second thread while they step and score.
+
+    On two cores the update (XLA or torch kernels, which release the GIL) and the simulation
+    with its reward model each get one. The update thread is joined before the step returns,
+    and the step neither reads the policy nor writes the replay buffer, so the two never touch
+    the same state; an error in an update is raised from the step."""
+
+    def __init__(self, venv: VecEnv) -> None:
+        super().__init__(venv)
+        self.while_waiting: Callable[[], None] | None = None
+        self._updates = ThreadPoolExecutor(max_workers=1, thread_name_prefix="inest-updates")
+        self._running: Future | None = None
+
+    def reset(self) -> np.ndarray:
+        return self.venv.reset()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        if self.while_waiting is not None:
+            self._running = self._updates.submit(self.while_waiting)
+        self.venv.step_async(actions)
+
+    def step_wait(self):
+        try:
+            return self.venv.step_wait()
+        finally:
+            running, self._running = self._running, None
+            if running is not None:
+                running.result()
+
+    def close(self) -> None:
+        self._updates.shutdown()
+        self.venv.close()
 
 
 def build_env(

@@ -7,8 +7,8 @@ Parameters: every training setting of config.py (`reward`, `total_steps`, `sac.b
 - `namespaces`: one simulator (and reward stream) per namespace, e.g. ["sim0", "sim1"]
 - `resume`: continue the run in `out` from its last checkpoint
 - `step_timeout`: seconds of silence before a topic is reported (the node keeps waiting)
-- `overlap_updates`: run each SAC update while the simulators take the next step (default on;
-  the action then comes from a policy one update older, see learners.OverlappedUpdatesMixin)
+- `overlap_updates` (a training setting, on by default here): run each SAC update while the
+  simulators take the next step (the action then comes from a policy one update older)
 - `episodes`, `policy`: evaluate mode, N episodes of a saved policy (default: `out`'s checkpoint)
 Periodic evaluations during training run on an in-process copy of the simulator.
 """
@@ -43,7 +43,6 @@ class AgentNodeConfig:
     step_timeout: float = 5.0
     episodes: int = 150
     policy: str = ""  # evaluate: a saved SAC model.zip; empty: `out`/checkpoint/model.zip
-    overlap_updates: bool = True  # update while the simulators step (learners.OverlappedUpdatesMixin)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -58,9 +57,9 @@ class AgentNodeConfig:
 
 def agent_train_defaults() -> TrainConfig:
     """The agent node's training defaults: the reward node's reward, whose intrinsic bonus the
-    reward node adds, and one torch thread (with updates overlapping the step, the other core
+    reward node adds, and one torch thread with updates overlapping the step (the other core
     serves the simulators and the reward node)."""
-    return TrainConfig(reward="topic", intrinsic=IntrinsicConfig(mode="none"), threads=1)
+    return TrainConfig(reward="topic", intrinsic=IntrinsicConfig(mode="none"), threads=1, overlap_updates=True)
 
 
 class AgentNode(Node):
@@ -82,7 +81,7 @@ class AgentNode(Node):
                 result = evaluate_vec_env(env, deterministic(model), settings.episodes, config.seed)
                 print(format_table({f"{Path(policy).name} over the graph": result}), flush=True)
                 return
-            trainer = Trainer(config, settings.out, settings.resume, env=env, overlap_updates=settings.overlap_updates)
+            trainer = Trainer(config, settings.out, settings.resume, env=env)
             try:
                 result = trainer.train()
             except (KeyboardInterrupt, Exception):

@@ -1,9 +1,10 @@
 """`inest-summarise ROOT`: one table of the training runs under ROOT/<method>/<run>/, across seeds.
 
 Writes ROOT/summary.json (per run: method, seed, steps, mean_score, success_rate, blocks_share,
-from its 150-episode final evaluation; per method: the mean over seeds with a 95 % bootstrap
-interval) and ROOT/learning_curves.png (per method the mean evaluation score across seeds, with
-the band between the lowest and highest seed). A run still training (its checkpoint's
+from its 150-episode final evaluation, and training_s, its training wall-clock seconds; per
+method: the mean over seeds with a 95 % bootstrap interval) and ROOT/learning_curves.png (per
+method the mean evaluation score across seeds, with the band between the lowest and highest
+seed). A run still training (its checkpoint's
 history.json, or a copy of it beside config.json, and no results.json yet) is listed with
 `"final": false` and its last periodic evaluation, and is left out of the per-method means.
 """
@@ -39,6 +40,8 @@ def read_run(run_dir: Path) -> dict[str, Any] | None:
             success_rate=final["success_rate"],
             blocks_share=final["blocks_share"],
         )
+        if "wall_clock_s" in results:  # runs before the timing was recorded have none
+            row["training_s"] = results["wall_clock_s"]["training"]
         row["curve"] = results["learning_curve"]
         return row
     histories = [path for path in (run_dir / CHECKPOINT_DIR / HISTORY_FILE, run_dir / HISTORY_FILE) if path.exists()]

@@ -1,10 +1,11 @@
 """Train SAC on the learned (or the environment's) reward, in one process (`inest-train`).
 
 Run folder: config.json (the full configuration), checkpoint/ (model.zip, replay_buffer.pkl,
-history.json, diagnostics.json, exploration.npz with the novelty memories: the `--resume`
-point, written every `checkpoint_every` steps), tensorboard/ (evaluation scores and the reward
-diagnostics), and at the end results.json (final 150-episode evaluation, learning curve points,
-reward diagnostics per evaluation interval, coverage of the visited embeddings, config),
+history.json, diagnostics.json, exploration.npz with the novelty memories, timing.json with the
+training seconds so far: the `--resume` point, written every `checkpoint_every` steps),
+tensorboard/ (evaluation scores and the reward diagnostics), and at the end results.json (final
+150-episode evaluation, learning curve points, reward diagnostics per evaluation interval,
+coverage of the visited embeddings, wall-clock seconds of training and final evaluation, config),
 learning_curve.png and coverage.png. Progress, evaluation, diagnostics and checkpoints during
 `learn()` are stable-baselines3 callbacks (callbacks.py); the learner classes are in learners.py.
 """
@@ -14,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +35,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, unwrap_vec_w
 
 from .callbacks import training_callbacks
 from .config import REWARDS, TrainConfig
-from .envs import LearnedRewardVecEnv, build_env
+from .envs import ConcurrentUpdatesVecEnv, LearnedRewardVecEnv, build_env
 from .evaluate import EvalResult, evaluate_vec_env, format_table, plot_learning_curve
 from .learners import (
     LEARNERS,
@@ -49,6 +51,9 @@ RESULTS_FILE = "results.json"
 EXPLORATION_FILE = "exploration.npz"  # novelty memories and visited embeddings
 HISTORY_FILE = "history.json"  # the learning curve: [steps, mean score, std] per evaluation
 DIAGNOSTICS_FILE = "diagnostics.json"
+# training seconds up to the checkpoint, periodic evaluations included, summed over resumes (the
+# time between a run's last checkpoint and its kill is lost with the steps it trained)
+TIMING_FILE = "timing.json"
 EVAL_ENVS = 10  # evaluation episodes run side by side (one encoder pass for all their frames)
 
 
@@ -72,9 +77,10 @@ def waiting_hook_owner(env: VecEnv) -> VecEnv:
 
 class Trainer:
     """SAC on in-process environments built from the config, or on `env` (the ROS graph's, with
-    the observation path of the config). `overlap_updates`: defer each update (learners.OverlappedUpdatesMixin)
-    and hand `model.run_pending_updates` to the env, which runs it while it steps: `env`, or a
-    vector env it wraps, must have a `while_waiting` hook (GraphVecEnv's)."""
+    the observation path of the config). `config.overlap_updates`: defer each update (learners.OverlappedUpdatesMixin)
+    and hand `model.run_pending_updates` to the env, which runs it while it steps: in process on a
+    second thread (envs.ConcurrentUpdatesVecEnv); `env`, or a vector env it wraps, must have a
+    `while_waiting` hook (GraphVecEnv's)."""
 
     def __init__(
         self,
@@ -83,16 +89,20 @@ class Trainer:
         resume: bool = False,
         progress_bar: bool = True,
         env: VecEnv | None = None,
-        overlap_updates: bool = False,
     ):
         self.config = config
         self.run_dir = Path(run_dir)
         self.progress_bar = progress_bar
         self.history: list[list[float]] = []
         self.diagnostics: list[dict[str, float]] = []  # reward diagnostics per evaluation interval
+        self.trained_seconds = 0.0  # up to the last checkpoint, over earlier sessions too
+        self.session_start = time.monotonic()
         self.check_run_dir(resume)
         torch.set_num_threads(config.threads)
         self.env = env if env is not None else build_env(config)
+        overlap_updates = config.overlap_updates
+        if overlap_updates and env is None:
+            self.env = ConcurrentUpdatesVecEnv(self.env)  # the updates run while the in-process envs step
         self.learned_env: LearnedRewardVecEnv | None = unwrap_vec_wrapper(self.env, LearnedRewardVecEnv)
         self.eval_env = build_env(config, min(EVAL_ENVS, config.final_eval_episodes), evaluation=True)
         checkpoint = self.run_dir / CHECKPOINT_DIR
@@ -114,6 +124,10 @@ class Trainer:
             self.history = read_run_file(checkpoint / HISTORY_FILE, read_json)
             if (checkpoint / DIAGNOSTICS_FILE).exists():
                 self.diagnostics = read_run_file(checkpoint / DIAGNOSTICS_FILE, read_json)
+            if (checkpoint / TIMING_FILE).exists():
+                self.trained_seconds = read_run_file(
+                    checkpoint / TIMING_FILE, lambda path: float(read_json(path)["training_s"])
+                )
             if self.learned_env is not None and (checkpoint / EXPLORATION_FILE).exists():
                 self.learned_env.restore_exploration(read_run_file(checkpoint / EXPLORATION_FILE, read_npz))
         else:
@@ -136,7 +150,8 @@ class Trainer:
         if resume and not (self.run_dir / CONFIG_FILE).is_file():
             raise RunFileError(f"nothing to resume in {self.run_dir}: it holds no earlier run ({CONFIG_FILE})")
         settings = self.config.to_dict()
-        prepare_run_dir(self.run_dir, settings, resume, set(settings) - {"total_steps", "reward_batch_steps"})
+        speed_only = {"total_steps", "reward_batch_steps", "overlap_updates"}  # may change on resume
+        prepare_run_dir(self.run_dir, settings, resume, set(settings) - speed_only)
 
     def save_checkpoint(self) -> None:
         """Model, replay buffer and history, each written whole before it replaces the last one."""
@@ -148,6 +163,11 @@ class Trainer:
         write_atomic(checkpoint / "model.zip", lambda path: self.model.save(path))
         write_atomic(checkpoint / HISTORY_FILE, lambda path: path.write_text(json.dumps(self.history)))
         write_atomic(checkpoint / DIAGNOSTICS_FILE, lambda path: path.write_text(json.dumps(self.diagnostics)))
+        now = time.monotonic()
+        self.trained_seconds += now - self.session_start
+        self.session_start = now
+        timing = json.dumps({"training_s": self.trained_seconds})
+        write_atomic(checkpoint / TIMING_FILE, lambda path: path.write_text(timing))
         if self.learned_env is not None:
             state = self.learned_env.exploration_state()
 
@@ -159,6 +179,7 @@ class Trainer:
 
     def train(self) -> EvalResult:
         remaining = self.config.total_steps - self.model.num_timesteps
+        self.session_start = time.monotonic()  # not the set-up (models, compilation) before it
         if remaining > 0:
             self.model.learn(remaining, callback=training_callbacks(self), reset_num_timesteps=False, tb_log_name="sac")
             if isinstance(self.model, OverlappedUpdatesMixin):
@@ -168,10 +189,15 @@ class Trainer:
 
     def finish(self) -> EvalResult:
         config = self.config
+        evaluation_start = time.monotonic()
         result = self.evaluate(config.final_eval_episodes)
         results: dict[str, Any] = {
             "final_evaluation": result.to_dict(),
             "steps": int(self.model.num_timesteps),
+            "wall_clock_s": {
+                "training": round(self.trained_seconds, 2),
+                "final_evaluation": round(time.monotonic() - evaluation_start, 2),
+            },
             "learning_curve": self.history,
             "reward_diagnostics": self.diagnostics,
             "config": config.to_dict(),
@@ -245,12 +271,20 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         help="what the classifier trackers read: auto (the pixel stage head if the model has one), pixels, embedding",
     )
     parser.add_argument("--oracle", choices=ORACLE_REWARDS, help="the simulator's reward, used by --reward env")
+    parser.add_argument(
+        "--overlap-updates",
+        action=argparse.BooleanOptionalAction,
+        help="run each update on a second thread while the environments step (faster on 2 cores)",
+    )
     for name in INTEGER_FLAGS:
         parser.add_argument(f"--{name.replace('_', '-')}", type=int)
     args = parser.parse_args(argv)
     overrides: dict[str, Any] = {
         name: getattr(args, name)
-        for name in ("reward", "model", "subtasks", "view", "observation", "oracle", "learner", *INTEGER_FLAGS)
+        for name in (
+            *("reward", "model", "subtasks", "view", "observation", "oracle", "learner", "overlap_updates"),
+            *INTEGER_FLAGS,
+        )
         if getattr(args, name) is not None
     }
     learned = {

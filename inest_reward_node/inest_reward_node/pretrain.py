@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 import torch
-from inest_common.files import sha256_of, write_atomic
+from inest_common.files import write_atomic
 from inest_common.progress import track
-from inest_sim_node.dataset import METADATA_FILE, DatasetError, read_metadata
+from inest_sim_node.dataset import DatasetError, DemoDataset
 
 from .calibrate import CalibrationConfig, calibrate
 from .clips import load_clips
@@ -95,9 +95,9 @@ class PretrainConfig:
 
 
 def dataset_hash(root: str | Path) -> str:
-    """sha256 of metadata.json, which lists every episode file's own sha256."""
-    read_metadata(Path(root))
-    return sha256_of(Path(root) / METADATA_FILE)
+    """The demonstrations' content hash (`DemoDataset.content_hash`): the same for the same
+    seeded collection on any machine, unlike the bytes of its files."""
+    return DemoDataset(root).content_hash()
 
 
 def model_metadata(config: PretrainConfig, iterations_done: int, subtasks: dict[int, SubtaskGoals]) -> ModelMetadata:

@@ -118,7 +118,13 @@ def _collect_seed(seed: int) -> dict[str, Any] | None:
         return None
     relative = f"episodes/seed_{seed:06d}.npz"
     sha256 = write_episode(_WORKER["root"] / relative, episode)
-    return {"file": relative, "seed": seed, "frames": len(episode), "sha256": sha256}
+    return {
+        "file": relative,
+        "seed": seed,
+        "frames": len(episode),
+        "sha256": sha256,
+        "content_sha256": episode.content_sha256(),
+    }
 
 
 # --- the collection -------------------------------------------------------------------

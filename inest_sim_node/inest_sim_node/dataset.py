@@ -2,18 +2,23 @@
 
 Layout of a dataset folder:
     metadata.json            config, versions, label schemes, and per split the list of
-                             episodes with seed, frame count and sha256 of the file
+                             episodes with seed, frame count, sha256 of the file and
+                             sha256 of its arrays (`content_sha256`)
     episodes/seed_000042.npz  one episode (see `Episode` for the arrays inside)
 
 Files are written atomically (temporary name, then rename), so an interrupted collection
 never leaves a half-written episode behind, and every read checks the recorded sha256 so
 a corrupt or truncated file is reported by name instead of feeding garbage to training.
+The file hashes change with every collection (the archive stores write times); the content
+hashes, and `DemoDataset.content_hash` over them, name the same demonstrations identically
+wherever and whenever they were collected, which is what a model records as its dataset.
 (The file helpers themselves, which the reward model and the trainer use too, are in
 `inest_common.files`.)
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import zipfile
 from dataclasses import dataclass
@@ -73,6 +78,15 @@ class Episode:
             arrays[f"labels_{scheme}"] = self.labels[scheme]
             arrays[f"ends_{scheme}"] = self.ends[scheme]
         return arrays
+
+    def content_sha256(self) -> str:
+        """sha256 of every array's name, dtype, shape and bytes: the episode, not its file."""
+        digest = hashlib.sha256()
+        for name, array in sorted(self.to_arrays().items()):
+            array = np.ascontiguousarray(array)
+            digest.update(f"{name}:{array.dtype.str}:{array.shape}\n".encode())
+            digest.update(array.tobytes())
+        return digest.hexdigest()
 
     @classmethod
     def from_arrays(cls, arrays: Any) -> Episode:
@@ -159,6 +173,17 @@ class DemoDataset:
     def iter_split(self, split: str):
         for index in range(len(self.entries(split))):
             yield self.load(split, index)
+
+    def content_hash(self) -> str:
+        """sha256 over every split's episodes (seed and content hash), the same for the same
+        demonstrations on any machine. A dataset collected before content hashes were recorded
+        has its episodes read to compute them."""
+        digest = hashlib.sha256()
+        for split in SPLITS:
+            for index, entry in enumerate(self.entries(split)):
+                content = entry.get("content_sha256") or self.load(split, index).content_sha256()
+                digest.update(f"{split}:{entry['seed']}:{content}\n".encode())
+        return digest.hexdigest()
 
     def verify(self) -> None:
         """Check every file against metadata.json; raises DatasetError naming the first bad one."""

@@ -10,6 +10,7 @@
 # INEST_PIXEL_MODEL (the same with pixel stage heads, default results/long-horizon/reward-model-pixel),
 # INEST_SCENE_MODEL (the same encoder with scene-camera stage heads, default results/long-horizon/reward-model-scene),
 # INEST_SCENE96_MODEL (the same with 96 px scene-camera stage heads, default results/long-horizon/reward-model-scene96),
+# INEST_ALLO96_MODEL (the allocentric encoder with 96 px stage heads on its own camera, default results/long-horizon/reward-model-allo96),
 # INEST_SEEDS (default "0 1 2"), INEST_PARALLEL (default 2), INEST_THREADS (torch/JAX threads per run, default 1).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -19,6 +20,7 @@ MODEL="${INEST_MODEL:-results/long-horizon/reward-model}"
 PIXEL_MODEL="${INEST_PIXEL_MODEL:-results/long-horizon/reward-model-pixel}"  # + pixel stage heads
 SCENE_MODEL="${INEST_SCENE_MODEL:-results/long-horizon/reward-model-scene}"  # + stage heads on the allocentric camera
 SCENE96_MODEL="${INEST_SCENE96_MODEL:-results/long-horizon/reward-model-scene96}"  # the same heads at 96 px
+ALLO96_MODEL="${INEST_ALLO96_MODEL:-results/long-horizon/reward-model-allo96}"  # encoder and heads on the scene camera
 RUNS=runs/long-horizon
 CONFIG=inest_agent_node/config/train.yaml
 
@@ -34,6 +36,9 @@ declare -A METHODS=(
   [inest3-scene-none]="--reward inest --model $SCENE_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000"
   [inest3-scene-embedding]="--reward inest --model $SCENE_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
   [inest3-scene96-embedding]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
+  # one camera for all: the allocentric encoder (shaping) and its 96 px stage heads
+  [inest3-allo96-embedding]="--reward inest --model $ALLO96_MODEL --view allo --intrinsic embedding --stage-evidence pixels --total-steps 300000"
+  [inest3-allo96-none]="--reward inest --model $ALLO96_MODEL --view allo --intrinsic none --stage-evidence pixels --total-steps 300000"
   # the same at 1M steps, evaluated every 50k, updates on a second thread: the wall-clock check of
   # a 1M-step run (INEST_PARALLEL=1, one thread: the updates take one core, the environments the other)
   [inest3-scene96-embedding-1m]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 1000000 --eval-every 50000 --overlap-updates"

@@ -51,7 +51,9 @@ def tiny_tcc_run(tiny_demos, tmp_path_factory):
         checkpoint_every=10,
         learning_rate=1e-3,
         # the head reads the encoder's camera: most graph tests publish that one camera only
-        calibration=CalibrationConfig(stage_head=StageHeadConfig(iterations=30, batch_size=32, view=None)),
+        calibration=CalibrationConfig(
+            stage_head=StageHeadConfig(image_size=48, iterations=30, batch_size=32, view=None)
+        ),
     )
     run_dir = tmp_path_factory.mktemp("tcc_run")
     pretrain(config, run_dir, progress_bar=False)

@@ -191,3 +191,15 @@ def test_the_report_replays_a_pixel_stage_tracker_on_the_frames(tiny_model, tiny
     episodes, embedded = negatives
     flags = negative_flags(tiny_model, episodes["random"], embedded["random"], 3, "inest", pixels)
     assert flags.shape == (len(episodes["random"]), 3)
+
+
+def test_the_privileged_stage_diagnostic_replays_the_true_progress(tiny_model, tiny_demos, negatives):
+    privileged = {"config": RewardConfig(stage_source="privileged")}
+    demo = load_demos(tiny_demos, "valid", tiny_model.view, tiny_model.image_size, limit=1, progress_bar=False)[0]
+    result = demo_quality(tiny_model, demo, tiny_model.embed(demo.frames), 3, "inest", privileged)
+    # the stage is the demonstration's own: each subtask completes on the frame its block counts
+    assert np.all(result.lags == 0)
+    np.testing.assert_array_equal(result.replay.completed, np.minimum(demo.progress, 3))
+    episodes, embedded = negatives
+    flags = negative_flags(tiny_model, episodes["random"], embedded["random"], 3, "inest", privileged)
+    assert not flags.any()  # the true stage claims no block that is not placed

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from inest_reward_node.model import ModelError, load_model
 from inest_reward_node.rewards import RewardScorer
-from inest_reward_node.stage_head import WEIGHTS_FILE, StageHeadConfig, fit_stage_head
+from inest_reward_node.stage_head import WEIGHTS_FILE, StageHead, StageHeadConfig, fit_stage_head
 from inest_reward_node.stages import RewardConfig
 
 
@@ -25,7 +25,7 @@ def marked_frames(stages: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 def test_the_head_reads_a_stage_only_the_pixels_show():
     rng = np.random.default_rng(0)
     stages = [rng.integers(0, 4, size=64) for _ in range(4)]
-    config = StageHeadConfig(iterations=60, batch_size=32)
+    config = StageHeadConfig(image_size=48, iterations=60, batch_size=32)
     head = fit_stage_head([marked_frames(s, rng) for s in stages], stages, 4, config)
     held = rng.integers(0, 4, size=200)
     at_least = head.at_least(marked_frames(held, rng))
@@ -63,3 +63,11 @@ def test_heads_are_saved_with_the_model_and_used_only_when_asked(tiny_tcc_run, t
     (without / WEIGHTS_FILE).unlink()
     with pytest.raises(ModelError, match="cannot load the stage heads"):
         load_model(without)
+
+
+def test_a_head_stored_before_its_camera_and_size_were_settings_reads_as_it_was_fitted():
+    stored = StageHeadConfig(image_size=48, view=None).to_dict()
+    del stored["view"], stored["image_size"]  # what a model calibrated before these settings holds
+    head = StageHead.from_dict({"num_stages": 4, "config": stored})
+    assert head.config.view is None and head.config.image_size == 48  # the encoder's camera, 48 px
+    assert StageHead.from_dict({"num_stages": 4, "config": StageHeadConfig().to_dict()}).config == StageHeadConfig()

@@ -225,6 +225,7 @@ def calibrate(
                 + [true_stages(clip.progress, clip.held, scheme) for clip in played],
                 scheme + 1,
                 head,
+                progress_bar,
             )
         result[scheme] = partial
     return result

@@ -21,8 +21,10 @@ holdr for HOLD-R models, reds for REDS models on their own segmentation; a REDS 
 Per subtask k (report key `per_subtask`, one entry per subtask, in order):
 - spearman_shaping_within: Spearman of the shaping term (RewardParts.distance: the reward
   without subtask bonus and without intrinsic bonus) against time, over the frames whose TRUE
-  subtask is k (the dataset's per-frame labels); median and mean over the demonstrations that
-  have at least 3 such frames. spearman_embedding_within: the same for the negated raw
+  stage is k (k subtasks really done, stages.demo_stages: the frame on which subtask k counts
+  is already stage k + 1, as it is for the reward, which pays that frame the bonus and shapes
+  it towards the next goal); median and mean over the demonstrations that have at least 3
+  such frames. spearman_embedding_within: the same for the negated raw
   embedding distance to goal k, so the representation and the shaping can be told apart.
 - switch_dip: total reward on the frame after the tracker's completion of k minus the frame
   before it (total[s + 1] - total[s - 1], s = the frame on which the tracker first marks k
@@ -46,7 +48,10 @@ Every reward is scored through `RewardScorer` (`rewards.replay`); --scorer-optio
 a RewardScorer constructor argument passes through (a JSON object for `config` or `intrinsic`
 becomes a RewardConfig or IntrinsicConfig), a RewardConfig field (shaping=, tracker=, ...) goes
 into its `config`. So the report can be run per shaping / tracker variant, e.g.
-`--scorer-option shaping=thesis --scorer-option tracker=threshold`. Writes report.json (with
+`--scorer-option shaping=thesis --scorer-option tracker=threshold`. `stage_source=privileged`
+(DIAGNOSTIC) replays every episode with its true stage and bonus, from its recorded progress:
+the shaping columns then measure the shaping alone, without the tracker's lag or errors.
+Writes report.json (with
 the model's config, the scorer options and each scheme's resulting scorer config) and PNG
 plots into --out.
 """
@@ -78,7 +83,7 @@ from .data import Demo, load_demos
 from .intrinsic import IntrinsicConfig
 from .model import ModelError, RewardModel, load_model
 from .rewards import Replay, RewardScorer, default_variant, replay
-from .stages import RewardConfig
+from .stages import RewardConfig, demo_stages
 
 REPORT_FILE = "report.json"
 NEGATIVE_SEEDS = {"random": 41_000_000, "wrong_order": 41_500_000}  # layouts no other episode uses
@@ -217,7 +222,7 @@ def negative_flags(
     rows = []
     seen = stage_episodes or episodes
     for episode, embedded, viewed in zip(episodes, embeddings, seen, strict=True):
-        played = replay(model, embedded, scheme, variant, scorer_options, viewed.frames)
+        played = replay(model, embedded, scheme, variant, scorer_options, viewed.frames, episode.progress)
         events = [played.completion_events(k) for k in range(num_subtasks)]
         rows.append(false_completions(events, episode, scheme))
     return np.stack(rows) if rows else np.zeros((0, num_subtasks), dtype=bool)
@@ -234,7 +239,7 @@ class DemoQuality:
     gaussians: np.ndarray  # (frames, subtasks)
     replay: Replay
     ends: np.ndarray
-    labels: np.ndarray  # (frames,) the true subtask of every frame
+    stages: np.ndarray  # (frames,) the true stage of every frame: subtasks really done
     metrics: dict[str, float]
     within_shaping: np.ndarray  # (subtasks,) within_subtask_spearman of the shaping term
     within_embedding: np.ndarray  # (subtasks,) the same of -raw embedding distance to goal k
@@ -263,12 +268,13 @@ def demo_quality(
         variant,
         scorer_options,
         np.concatenate([seen, np.repeat(seen[-1:], SETTLE_FRAMES, 0)]),
+        np.concatenate([demo.progress, np.repeat(demo.progress[-1:], SETTLE_FRAMES)]),
     )
     played = Replay(settled.parts.select(slice(0, len(embeddings))), settled.num_subtasks)  # the scorer is causal
     env = np.concatenate([demo.rewards[:1], demo.rewards]).astype(np.float64)
     goals = model.goals(scheme).goals
     ends = demo.ends[scheme]
-    labels = np.asarray(demo.labels[scheme], dtype=int)
+    stages = demo_stages(demo.progress, demo.labels[scheme], scheme)
     starts = subtask_starts(ends)
     cosine = np.stack([cosine_similarity(embeddings, goal) for goal in goals], axis=1)
     gaussians = np.stack([ground_truth_gaussian(len(demo), s, e) for s, e in zip(starts, ends, strict=True)], axis=1)
@@ -296,10 +302,10 @@ def demo_quality(
         gaussians=gaussians,
         replay=played,
         ends=ends,
-        labels=labels,
+        stages=stages,
         metrics=metrics,
-        within_shaping=within_subtask_spearman(played.distance, labels, len(goals)),
-        within_embedding=within_subtask_spearman(-distances, labels, len(goals)),
+        within_shaping=within_subtask_spearman(played.distance, stages, len(goals)),
+        within_embedding=within_subtask_spearman(-distances, stages, len(goals)),
         dips=switch_dips(settled.rewards, completions, len(goals)),
         lags=completion_lags(completions, ends),
     )
@@ -419,17 +425,17 @@ def plot_scheme(results: list[DemoQuality], title: str, path: Path, examples: in
             middle.plot(min_max(result.cosine[:, i]), color=colours(i), label=f"subtask {i + 1}")
             middle.plot(result.gaussians[:, i], "--", color=colours(i), alpha=0.6)
         middle.set(title="cosine to goal (solid) vs ground truth (dashed)", xlabel="frame")
-        frames = np.arange(len(result.labels))
+        frames = np.arange(len(result.stages))
         shaping = result.replay.distance
         for i in range(result.cosine.shape[1]):
-            mask = result.labels == i
-            label = f"true subtask {i + 1}"
+            mask = result.stages == i
+            label = f"true stage {i + 1}"
             bottom.plot(frames[mask], shaping[mask], ".-", color=colours(i), markersize=3, label=label)
             bottom.axvline(int(result.ends[i]), color=colours(i), linestyle=":", linewidth=1.0)
         for frame in completions:
             bottom.axvline(frame, color="grey", alpha=0.6, linewidth=1.0)
         rhos = ", ".join("-" if not np.isfinite(rho) else f"{rho:.2f}" for rho in result.within_shaping)
-        bottom.set_title(f"shaping by true subtask, rho {rhos}", fontsize=9)
+        bottom.set_title(f"shaping by true stage, rho {rhos}", fontsize=9)
         bottom.set(xlabel="frame (grey: tracker completions)", ylabel="reward without bonus")
     axes[0, 0].legend(fontsize=8)
     axes[1, 0].legend(fontsize=8)

@@ -29,6 +29,7 @@ from .stages import (
     RewardConfig,
     StageTracker,
     privileged_stages,
+    progress_states,
     segment_closeness,
 )
 
@@ -524,17 +525,24 @@ def replay(
     variant: str | None = None,
     scorer_options: dict[str, object] | None = None,
     frames: np.ndarray | None = None,
+    progress: np.ndarray | None = None,
 ) -> Replay:
     """Feed one episode's embeddings, in order, through a fresh scorer: `RewardScorer(model,
     scheme, variant, **scorer_options)` (no intrinsic bonus unless the options ask for one),
     all frames in one `score_embeddings` call as rows of environment 0, one round per frame.
     `frames` (the episode through the stage head's camera: the images the embeddings came from,
     or the scene camera's when the head reads that, `RewardScorer.stage_camera`) give a tracker
-    that reads the pixel stage head its evidence; it refuses to replay without them."""
+    that reads the pixel stage head its evidence; it refuses to replay without them. `progress`
+    (ordered blocks placed, per frame) gives the privileged-stage diagnostic its true stage."""
     scorer = RewardScorer(model, scheme, variant, **(scorer_options or {}))
     count = len(embeddings)
     evidence = None if frames is None else scorer.stage_evidence(np.asarray(frames))
+    privileged = progress is not None and scorer.config.stage_source == "privileged"
     parts = scorer.score_embeddings(
-        np.asarray(embeddings), envs=np.zeros(count, dtype=int), rounds=np.arange(count), stage_evidence=evidence
+        np.asarray(embeddings),
+        progress_states(progress) if privileged else None,
+        envs=np.zeros(count, dtype=int),
+        rounds=np.arange(count),
+        stage_evidence=evidence,
     )
     return Replay(parts, scorer.num_subtasks)

@@ -168,6 +168,14 @@ def privileged_stages(states: np.ndarray | None, scheme: int) -> np.ndarray:
     return true_stages(progress, None, scheme)
 
 
+def progress_states(progress: np.ndarray) -> np.ndarray:
+    """State vectors that carry only the ordered progress, which is all privileged_stages reads:
+    for replaying a recorded episode (the reward-quality report) with the true stage."""
+    states = np.zeros((len(progress), len(STATE_FIELDS)), dtype=np.float32)
+    states[:, PROGRESS_FIELD] = np.asarray(progress, dtype=np.float32) / NUM_BLOCKS
+    return states
+
+
 class StageClassifier:
     """P(stage = j | embedding), j = 0..K: standardise, one ReLU hidden layer, softmax.
     Numpy at inference (a few microseconds per frame); stored as plain lists in model.json."""

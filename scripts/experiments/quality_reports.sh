@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Every reward-quality report of docs/reward-signal.md, one after another, from the committed
+# models and the demonstration set of `inest-collect-demos --out runs/demos --episodes 1000`:
+# results/reward-signal/<report>/ (report.json, plots) and the printed table beside it as <report>.txt.
+#   bash scripts/experiments/quality_reports.sh [REPORT ...]   # default: all of them
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
+cd "$ROOT"
+BIN="${INEST_VENV:-$ROOT/.venv}/bin"
+MODELS=results/long-horizon
+OUT=results/reward-signal
+PIXELS=(--scorer-option stage_evidence=pixels)
+PRIVILEGED=(--scorer-option stage_source=privileged)
+
+declare -A REPORTS=(
+  [quality-default]="$MODELS/reward-model --schemes 3"
+  [quality-thesis]="$MODELS/reward-model --schemes 3 --scorer-option shaping=thesis --scorer-option tracker=threshold"
+  [quality-pixel]="$MODELS/reward-model-pixel --schemes 3 ${PIXELS[*]}"
+  [quality-scene]="$MODELS/reward-model-scene --schemes 3 ${PIXELS[*]}"
+  [quality-scene96]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]}"
+  [quality-scene96-privileged]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} ${PRIVILEGED[*]}"
+  [allo-encoder/quality]="$OUT/allo-encoder/model --schemes 1 3 --scorer-option stage_evidence=embedding"
+  [allo-encoder/quality-pixels]="$OUT/allo-encoder/model --schemes 3 ${PIXELS[*]}"
+  [quality-allo96]="$MODELS/reward-model-allo96 --schemes 3 ${PIXELS[*]}"
+  [quality-allo96-privileged]="$MODELS/reward-model-allo96 --schemes 3 ${PIXELS[*]} ${PRIVILEGED[*]}"
+)
+selected=("$@")
+[ ${#selected[@]} -gt 0 ] || selected=("${!REPORTS[@]}")
+for report in "${selected[@]}"; do
+  [ -n "${REPORTS[$report]+x}" ] || { echo "quality_reports: unknown report $report (${!REPORTS[*]})" >&2; exit 2; }
+  read -r model options <<<"${REPORTS[$report]}"
+  echo "quality_reports: $report" >&2
+  rm -rf "${OUT:?}/$report"
+  # shellcheck disable=SC2086  # options is a flag list
+  "$BIN/inest-reward-quality" "$model" runs/demos --out "$OUT/$report" $options >"$OUT/$report.txt"
+done

@@ -80,38 +80,32 @@ def main() -> None:
         node = rclpy.create_node("graph_speed_agent")
         graph_env = GraphVecEnv(node, namespaces)
         try:
-            trainers = (
-                {
-                    f"in_process_{threads}_threads": Trainer(
-                        TrainConfig(reward="inest", model=model, sac=sac, threads=threads, **common),
-                        f"{root}/local{threads}",
-                        progress_bar=False,
-                    )
-                    for threads in (1, 2)
-                }
-                | {
-                    "in_process_1_thread_overlapped": Trainer(
-                        TrainConfig(reward="inest", model=model, sac=sac, threads=1, overlap_updates=True, **common),
-                        f"{root}/local-overlapped",
-                        progress_bar=False,
-                    ),
-                }
-                | {
-                    "graph": Trainer(
-                        TrainConfig(
-                            reward="topic",
-                            model=model,  # the stage observation's in-process evaluations track the stage with it
-                            intrinsic=IntrinsicConfig(mode="none"),
-                            sac=sac,
-                            threads=GRAPH_THREADS,
-                            overlap_updates=OVERLAP,
-                            **common,
-                        ),
-                        f"{root}/graph",
-                        progress_bar=False,
-                        env=graph_env,
-                    ),
-                }
+            trainers = {
+                f"in_process_{threads}_threads": Trainer(
+                    TrainConfig(reward="inest", model=model, sac=sac, threads=threads, **common),
+                    f"{root}/local{threads}",
+                    progress_bar=False,
+                )
+                for threads in (1, 2)
+            }
+            trainers["in_process_1_thread_overlapped"] = Trainer(
+                TrainConfig(reward="inest", model=model, sac=sac, threads=1, overlap_updates=True, **common),
+                f"{root}/local-overlapped",
+                progress_bar=False,
+            )
+            trainers["graph"] = Trainer(
+                TrainConfig(
+                    reward="topic",
+                    model=model,  # the stage observation's in-process evaluations track the stage with it
+                    intrinsic=IntrinsicConfig(mode="none"),
+                    sac=sac,
+                    threads=GRAPH_THREADS,
+                    overlap_updates=OVERLAP,
+                    **common,
+                ),
+                f"{root}/graph",
+                progress_bar=False,
+                env=graph_env,
             )
             speeds = trainer_speeds(trainers)
         finally:

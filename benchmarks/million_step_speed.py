@@ -35,8 +35,8 @@ def part_ms(call, repeats: int = PART_REPEATS) -> float:
 
 def main() -> None:
     model = sys.argv[1] if len(sys.argv) > 1 else "results/long-horizon/reward-model-scene96"
-    flags = ["--reward", "inest", "--model", model, "--intrinsic", "embedding", "--stage-evidence", "pixels"]
-    flags += ["--threads", "1", "--eval-every", str(10**9), "--total-steps", str(10**9)]
+    reward = ["--reward", "inest", "--model", model, "--intrinsic", "embedding", "--stage-evidence", "pixels"]
+    flags = [*reward, "--threads", "1", "--eval-every", str(10**9), "--total-steps", str(10**9)]
     with tempfile.TemporaryDirectory() as root:
         config, _ = parse_args(["--config", "inest_agent_node/config/train.yaml", "--out", root, *flags])
         trainers = {
@@ -67,7 +67,7 @@ def main() -> None:
                 "gradient_steps_per_vector_step": sac.gradient_steps,
                 "million_steps_training_minutes": round(MILLION / fastest / 60, 1),
                 "target_minutes": 90,
-                "settings": f"{' '.join(flags[:8])}, threads 1, rounds of {ROUND_STEPS} steps x {ROUNDS} "
+                "settings": f"{' '.join(reward)}, threads 1, rounds of {ROUND_STEPS} steps x {ROUNDS} "
                 f"after {WARM_UP_STEPS} warm-up steps, no evaluation",
             }
         )

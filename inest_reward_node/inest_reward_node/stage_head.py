@@ -34,7 +34,7 @@ STORED_BEFORE: dict[str, Any] = {"view": None, "image_size": 48}
 
 @dataclass(frozen=True)
 class StageHeadConfig:
-    """Fitting the pixel stage head (Adam on class-balanced batches; about a minute per scheme)."""
+    """Fitting the pixel stage head (Adam on class-balanced batches; minutes per scheme at 96 px)."""
 
     # frames are downscaled to this (the encoders' 96 px: no downscaling). At 48 px the scene head
     # missed 8 % of the held-out yellow completions, at 96 px 5 % (docs/reward-signal.md)

@@ -36,12 +36,16 @@ declare -A METHODS=(
   [inest3-scene-none]="--reward inest --model $SCENE_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000"
   [inest3-scene-embedding]="--reward inest --model $SCENE_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
   [inest3-scene96-embedding]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
+  [inest3-scene96-embedding-state-obs]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --observation state --total-steps 300000"
   # one camera for all: the allocentric encoder (shaping) and its 96 px stage heads
   [inest3-allo96-embedding]="--reward inest --model $ALLO96_MODEL --view allo --intrinsic embedding --stage-evidence pixels --total-steps 300000"
   [inest3-allo96-none]="--reward inest --model $ALLO96_MODEL --view allo --intrinsic none --stage-evidence pixels --total-steps 300000"
   # the same at 1M steps, evaluated every 50k, updates on a second thread: the wall-clock check of
   # a 1M-step run (INEST_PARALLEL=1, one thread: the updates take one core, the environments the other)
   [inest3-scene96-embedding-1m]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 1000000 --eval-every 50000 --overlap-updates"
+  # the same with one gradient step per vector step (replay ratio 0.25, 250k updates in 1M steps): the
+  # update no longer outlasts the environments' step, so a 1M-step run fits 90 minutes on 2 cores
+  [inest3-scene96-embedding-1m-rr025]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 1000000 --eval-every 50000 --overlap-updates --gradient-steps 1"
   # DIAGNOSTIC, never a method: the learned shaping with the stage and bonus of the true progress
   [inest3-privileged-stage]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --stage-source privileged --total-steps 300000"
 )

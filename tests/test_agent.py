@@ -195,6 +195,8 @@ def test_command_line_flags_override_the_config_file(tmp_path):
     config, _ = parse_args(["--out", "x", "--config", str(path), "--intrinsic", "state", "--total-steps", "1000"])
     assert (config.intrinsic.mode, config.intrinsic.k, config.total_steps) == ("state", 5, 1000)
     assert config.sac.batch_size == 64
+    config, _ = parse_args(["--out", "x", "--config", str(path), "--gradient-steps", "1"])
+    assert (config.sac.gradient_steps, config.sac.batch_size) == (1, 64)
     config, _ = parse_args(["--out", "x", "--config", str(path), "--reward", "env"])
     assert config.reward == "env" and config.intrinsic.mode == "none"
     path.write_text("num_envs: 2\n")  # a partial file: the model comes from the command line

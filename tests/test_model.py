@@ -118,3 +118,19 @@ def test_resnet18_models_train_save_and_load(tiny_tcc_run, tmp_path):
     model = load_model(tmp_path / "model", scheme=6)
     assert model.encoder_config.kind == "resnet18"
     assert model.embed(np.zeros((3, 48, 48, 3), np.uint8)).shape == (3, 32)
+
+
+def test_pretraining_options_for_augmentation_and_the_device(tiny_tcc_run, tmp_path, capsys):
+    from inest_reward_node.pretrain import main, parse_args
+
+    dataset = tiny_tcc_run[0].dataset
+    config, _ = parse_args([dataset, "--out", "x", "--augment-shift", "8", "--augment-brightness", "0.4"])
+    assert (config.augment.max_shift, config.augment.brightness, config.augment.contrast) == (8, 0.4, 0.2)
+    assert config.device == "cpu" and "device" not in config.settings_that_matter()  # a resumed run may move
+    for device, message in (("tpu", "unknown device 'tpu'"), ("cuda", "sees no GPU")):
+        if device == "cuda" and torch.cuda.is_available():
+            continue
+        assert main([dataset, "--out", str(tmp_path / device), "--device", device]) == 2
+        error = capsys.readouterr().err
+        assert error.count("\n") == 1 and message in error
+        assert not (tmp_path / device).exists()  # refused before a run folder is made

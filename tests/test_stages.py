@@ -51,6 +51,7 @@ def test_reward_config_validates_its_fields():
         {"hold_steps": -1},
         {"stage_confidence": 1.0},
         {"confirm_window": -1},
+        {"confirm_steps": -1},
         {"intrinsic_cap": 0.0},
         {"intrinsic_cap": float("nan")},
     ):
@@ -176,6 +177,20 @@ def test_the_confirmed_tracker_needs_the_threshold_test_and_then_the_classifier(
     steps = [tracker.step(*AT_GOAL_0, says_0) for _ in range(2)] + [tracker.step(*MOVED_ON, says_1) for _ in range(2)]
     assert steps == [0, 0, 0, 1] and tracker.completed == 1
     assert [tracker.step(*PUSHED_BACK, says_1) for _ in range(2)] == [0, -1]  # and reopens
+
+
+def test_the_confirmed_tracker_confirms_on_the_first_agreeing_frame_with_one_confirm_step():
+    says_0, says_1 = np.array([1.0, 0.1, 0.0]), np.array([1.0, 0.9, 0.1])
+    lags = {}
+    for agree_steps in (0, 1):  # 0: as many frames as the threshold test (hold_steps 3)
+        tracker = ConfirmedTracker([-0.02, -0.02], hold_steps=3, confidence=0.5, window=5, agree_steps=agree_steps)
+        steps = [tracker.step(*AT_GOAL_0, says_0) for _ in range(3)] + [
+            tracker.step(*AT_GOAL_0, says_1) for _ in range(3)
+        ]
+        lags[agree_steps] = steps.index(1) - 3  # frames after the classifier first agrees
+    assert lags == {0: 2, 1: 0}
+    scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=RewardConfig("progress", confirm_steps=1))
+    assert scorer.new_tracker().agree_steps == 1
 
 
 def test_the_reopening_trackers_in_the_scorer():

@@ -278,6 +278,9 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     )
     for name in INTEGER_FLAGS:
         parser.add_argument(f"--{name.replace('_', '-')}", type=int)
+    parser.add_argument(
+        "--gradient-steps", type=int, help="gradient steps per vector step (sac.gradient_steps; the replay ratio)"
+    )
     args = parser.parse_args(argv)
     overrides: dict[str, Any] = {
         name: getattr(args, name)
@@ -294,6 +297,8 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     }
     if learned:
         overrides["learned_reward"] = learned
+    if args.gradient_steps is not None:
+        overrides["sac"] = {"gradient_steps": args.gradient_steps}
     if args.intrinsic is not None:
         overrides["intrinsic"] = {"mode": args.intrinsic}
     elif overrides.get("reward", "inest") != "inest":

@@ -32,6 +32,10 @@ class Objective:
         self.config = config
         self.network = network
 
+    def tensor(self, array: np.ndarray) -> torch.Tensor:
+        """A batch array as a tensor on the network's device."""
+        return torch.from_numpy(array).to(self.config.device)
+
     @classmethod
     def check_config(cls, config: PretrainConfig) -> None:
         """Raise ValueError for settings this method cannot train with."""
@@ -41,7 +45,7 @@ class Objective:
         videos, frames, size = clips.shape[0], clips.shape[1], clips.shape[2]
         images = frames_to_tensor(clips.reshape(-1, size, size, 3), channels_last=False)
         images = augment_videos(images.view(videos, frames, 3, size, size), self.config.augment, generator)
-        images = images.flatten(0, 1)
+        images = images.flatten(0, 1).to(self.config.device)
         if self.config.encoder.channels_last:
             images = images.contiguous(memory_format=torch.channels_last)
         return self.network(images).view(videos, frames, -1)
@@ -64,7 +68,7 @@ class TCCObjective(Objective):
         config = self.config
         clips, positions = sample_tcc_batch(demos, config.videos_per_batch, config.frames_per_video, rng)
         embeddings = self.embed_clips(clips, generator)
-        return tcc_loss(embeddings, torch.from_numpy(positions), config.temperature)
+        return tcc_loss(embeddings, self.tensor(positions), config.temperature)
 
 
 class HoldRObjective(Objective):
@@ -78,7 +82,7 @@ class HoldRObjective(Objective):
         starts, goals, gaps = sample_goal_pairs(demos, config.pairs_per_batch, rng)
         embeddings = self.embed_clips(np.stack([starts, goals], axis=1), generator)
         predicted = self.network.gap(embeddings[:, 0], embeddings[:, 1])
-        return torch.nn.functional.mse_loss(predicted, torch.from_numpy(gaps) / config.holdr.steps_unit)
+        return torch.nn.functional.mse_loss(predicted, self.tensor(gaps) / config.holdr.steps_unit)
 
 
 class RedsObjective(Objective):
@@ -103,13 +107,13 @@ class RedsObjective(Objective):
         features = self.embed_frames(np.concatenate([batch.frames, batch.next_frames, others]), generator)
         anchor, later, others = features[:count], features[count : 2 * count], features[2 * count :]
         subtasks = self.network.subtask_embeddings
-        labels = torch.from_numpy(batch.labels)
+        labels = self.tensor(batch.labels)
         reward = self.network.reward(anchor, subtasks[labels])
-        canonical_reward = self.network.reward(others, subtasks[torch.from_numpy(batch.canonical_labels.reshape(-1))])
+        canonical_reward = self.network.reward(others, subtasks[self.tensor(batch.canonical_labels.reshape(-1))])
         learned = reward - canonical_reward.view(count, canonical).mean(dim=1)
-        truth = torch.from_numpy(batch.targets - batch.canonical_targets.mean(axis=1))
+        truth = self.tensor(batch.targets - batch.canonical_targets.mean(axis=1))
         epic = pearson_distance(learned, truth)
-        later_reward = self.network.reward(later, subtasks[torch.from_numpy(batch.next_labels)])
+        later_reward = self.network.reward(later, subtasks[self.tensor(batch.next_labels)])
         regulariser = torch.relu(reds.regulariser_margin - later_reward + reward).sum()
         contrastive = supervised_contrastive_loss(
             torch.cat([anchor, subtasks[labels]]), torch.cat([labels, labels]), reds.temperature

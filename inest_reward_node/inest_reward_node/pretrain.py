@@ -71,6 +71,7 @@ class PretrainConfig:
     valid_limit: int | None = None
     seed: int = 0
     threads: int = 2
+    device: str = "cpu"  # where the network trains ("cuda" on a GPU machine); calibration runs on the CPU
     shaping: ShapingConfig = field(default_factory=ShapingConfig)
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
 
@@ -82,6 +83,8 @@ class PretrainConfig:
         for name in ("iterations", "videos_per_batch", "frames_per_video", "pairs_per_batch", "threads"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.device != "cpu" and not self.device.startswith("cuda"):
+            raise ValueError(f"unknown device {self.device!r}; expected 'cpu' or 'cuda'")
         OBJECTIVES[self.method].check_config(self)
 
     def to_dict(self) -> dict[str, Any]:
@@ -91,7 +94,7 @@ class PretrainConfig:
         """Fields that change what this method trains, which a resumed run must keep. `iterations`
         may grow; shaping and calibration only affect the goals computed at the end."""
         unused = OBJECTIVES[self.method].unused_settings
-        return set(self.to_dict()) - unused - {"iterations", "shaping", "calibration"}
+        return set(self.to_dict()) - unused - {"iterations", "device", "shaping", "calibration"}
 
 
 def dataset_hash(root: str | Path) -> str:
@@ -135,11 +138,13 @@ def plot_history(history: dict[str, list[list[float]]], path: Path) -> None:
 
 class Pretrainer:
     def __init__(self, config: PretrainConfig, run_dir: str | Path, resume: bool = False) -> None:
+        if config.device.startswith("cuda") and not torch.cuda.is_available():
+            raise ValueError(f"--device {config.device}: this torch build sees no GPU")
         self.config = config
         self.run_dir = Path(run_dir)
         self.check_run_dir(resume)
         torch.manual_seed(config.seed)
-        self.network = build_network(config.method, config.encoder, config.holdr, config.reds)
+        self.network = build_network(config.method, config.encoder, config.holdr, config.reds).to(config.device)
         self.optimizer = torch.optim.AdamW(
             self.network.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay
         )
@@ -168,7 +173,7 @@ class Pretrainer:
         write_atomic(self.run_dir / STATE_FILE, lambda path: torch.save(state, path))
 
     def load_state(self) -> None:
-        state = torch.load(self.run_dir / STATE_FILE, weights_only=True)
+        state = torch.load(self.run_dir / STATE_FILE, weights_only=True, map_location=self.config.device)
         self.network.load_state_dict(state["network"])
         self.optimizer.load_state_dict(state["optimizer"])
         self.iteration = int(state["iteration"])
@@ -223,6 +228,7 @@ class Pretrainer:
         return self.finish(train, progress_bar)
 
     def finish(self, train: list[Demo], progress_bar: bool = True) -> RewardModel:
+        self.network.to("cpu")
         model = RewardModel(self.network, model_metadata(self.config, self.iteration, {}))
         subtasks = calibrate(model, train, self.config, progress_bar)
         metadata = model_metadata(self.config, self.iteration, subtasks)
@@ -379,6 +385,19 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         help="reds: EPIC canonicalisation frames per anchor (default %(default)s)",
     )
     parser.add_argument("--no-augment", action="store_true")
+    parser.add_argument(
+        "--augment-shift", type=int, default=defaults.augment.max_shift, help="largest random shift, pixels"
+    )
+    parser.add_argument(
+        "--augment-brightness",
+        type=float,
+        default=defaults.augment.brightness,
+        help="brightness factor drawn from [1 - b, 1 + b] (default %(default)s)",
+    )
+    parser.add_argument(
+        "--augment-contrast", type=float, default=defaults.augment.contrast, help="contrast jitter, like brightness"
+    )
+    parser.add_argument("--device", default=defaults.device, help="torch device of the training: cpu (default) or cuda")
     args = parser.parse_args(argv)
     config = dataclasses.replace(
         defaults,
@@ -395,7 +414,14 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
             frames_per_batch=args.reds_frames_per_batch,
             canonical_samples=args.reds_canonical_samples,
         ),
-        augment=dataclasses.replace(defaults.augment, enabled=not args.no_augment),
+        augment=dataclasses.replace(
+            defaults.augment,
+            enabled=not args.no_augment,
+            max_shift=args.augment_shift,
+            brightness=args.augment_brightness,
+            contrast=args.augment_contrast,
+        ),
+        device=args.device,
         shaping=dataclasses.replace(defaults.shaping, hold_steps=args.hold_steps),
         calibration=dataclasses.replace(
             defaults.calibration,

@@ -139,7 +139,7 @@ def supervised_contrastive_loss(features: torch.Tensor, labels: torch.Tensor, te
     are left out."""
     features = nn.functional.normalize(features, dim=-1)
     logits = features @ features.T / temperature
-    self_mask = torch.eye(len(features), dtype=torch.bool)
+    self_mask = torch.eye(len(features), dtype=torch.bool, device=features.device)
     logits = logits.masked_fill(self_mask, float("-inf"))
     log_probability = logits - torch.logsumexp(logits, dim=1, keepdim=True)
     positives = (labels[:, None] == labels[None, :]) & ~self_mask

@@ -294,7 +294,9 @@ class RewardScorer:
         if config.tracker == "classifier":
             return ClassifierTracker(len(thresholds), self.hold_steps, config.stage_confidence)
         if config.tracker == "confirmed":
-            return ConfirmedTracker(thresholds, self.hold_steps, config.stage_confidence, config.confirm_window)
+            return ConfirmedTracker(
+                thresholds, self.hold_steps, config.stage_confidence, config.confirm_window, config.confirm_steps
+            )
         if config.tracker == "reopening":
             return ReopeningTracker(thresholds, self.hold_steps)
         return SubtaskTracker(thresholds, self.hold_steps)

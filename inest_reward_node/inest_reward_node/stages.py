@@ -86,6 +86,9 @@ class RewardConfig:
       has a pixel stage head for the scheme, else embedding (models fitted without one).
     stage_confidence: the classifier says "stage >= j" when it gives P(stage >= j) >= this.
     confirm_window: frames after the threshold test has held within which the classifier must agree.
+    confirm_steps: frames in a row the classifier must agree to confirm a completion; 0: hold_steps,
+      the streak the threshold test needs. 1 confirms on the first frame the classifier agrees,
+      which shortens the tracker's lag behind the true completion (docs/reward-signal.md).
     intrinsic_cap: the weighted novelty bonus (after the post-switch boost) is clipped to at most
       this; None (or inf) for no clip.
     """
@@ -97,6 +100,7 @@ class RewardConfig:
     hold_steps: int = 0
     stage_confidence: float = 0.5
     confirm_window: int = 20
+    confirm_steps: int = 0
     intrinsic_cap: float | None = None
 
     def __post_init__(self) -> None:
@@ -114,6 +118,8 @@ class RewardConfig:
             raise ValueError(f"stage_confidence must be in (0, 1), got {self.stage_confidence}")
         if self.confirm_window < 0:
             raise ValueError(f"confirm_window must be >= 0, got {self.confirm_window}")
+        if self.confirm_steps < 0:
+            raise ValueError(f"confirm_steps must be >= 0 (0: hold_steps), got {self.confirm_steps}")
         if self.intrinsic_cap is not None and not self.intrinsic_cap > 0:  # also rejects NaN
             raise ValueError(f"intrinsic_cap must be positive (or None for no cap), got {self.intrinsic_cap}")
 
@@ -374,14 +380,18 @@ class ReopeningTracker(StageTracker):
 class ConfirmedTracker(ReopeningTracker):
     """Completes subtask c when the threshold test has held for `hold_steps` frames and, within
     `window` frames of that, the stage classifier says P(stage >= c + 1) >= confidence for
-    `hold_steps` frames in a row (the classifier lags the distance test by a frame or two);
+    `agree_steps` frames in a row (default `hold_steps`; the classifier lags the distance test by a
+    frame or two, and each frame of agreement asked for adds to the lag);
     reopens like ReopeningTracker. Each test alone is fooled by different frames (on the
     default model the threshold test by 10 % of random and 55 % of wrong-order episodes, the
     classifier by 55 % and 100 %); together they completed a subtask falsely in 0 % and 5 %,
     and missed 1-4 % of the demonstrations' completions."""
 
-    def __init__(self, thresholds: Sequence[float], hold_steps: int, confidence: float, window: int) -> None:
+    def __init__(
+        self, thresholds: Sequence[float], hold_steps: int, confidence: float, window: int, agree_steps: int = 0
+    ) -> None:
         self.confidence, self.window = confidence, window
+        self.agree_steps = agree_steps or hold_steps
         super().__init__(thresholds, hold_steps)
 
     def reset(self) -> None:
@@ -400,7 +410,7 @@ class ConfirmedTracker(ReopeningTracker):
             self.agreed = self.agreed + 1 if at_least[c + 1] >= self.confidence else 0
         self.down_streak = self.down_streak + 1 if self.undone(rewards, segments) else 0
         change = 0
-        if self.waited >= 0 and self.agreed >= self.hold_steps:
+        if self.waited >= 0 and self.agreed >= self.agree_steps:
             self.completed, change = c + 1, 1
         elif self.down_streak >= self.hold_steps:
             self.completed, change = c - 1, -1

@@ -29,7 +29,7 @@ def tcc_loss(embeddings: torch.Tensor, frame_positions: torch.Tensor, temperatur
     if frame_positions.shape != embeddings.shape[:2]:
         raise ValueError(f"frame_positions {tuple(frame_positions.shape)} must match {tuple(embeddings.shape[:2])}")
     videos = embeddings.shape[0]
-    first, second = torch.meshgrid(torch.arange(videos), torch.arange(videos), indexing="ij")
+    first, second = torch.meshgrid(*(torch.arange(videos, device=embeddings.device),) * 2, indexing="ij")
     keep = first != second
     u, v = embeddings[first[keep]], embeddings[second[keep]]  # (P, T, D) each
     alpha = torch.softmax(pairwise_similarity(u, v, temperature), dim=-1)  # u_i -> v

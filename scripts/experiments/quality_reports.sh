@@ -18,6 +18,7 @@ declare -A REPORTS=(
   [quality-pixel]="$MODELS/reward-model-pixel --schemes 3 ${PIXELS[*]}"
   [quality-scene]="$MODELS/reward-model-scene --schemes 3 ${PIXELS[*]}"
   [quality-scene96]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]}"
+  [quality-scene96-confirm1]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=1"
   [quality-scene96-privileged]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} ${PRIVILEGED[*]}"
   [allo-encoder/quality]="$OUT/allo-encoder/model --schemes 1 3 --scorer-option stage_evidence=embedding"
   [allo-encoder/quality-pixels]="$OUT/allo-encoder/model --schemes 3 ${PIXELS[*]}"

@@ -270,6 +270,10 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         choices=STAGE_EVIDENCE,
         help="what the classifier trackers read: auto (the pixel stage head if the model has one), pixels, embedding",
     )
+    parser.add_argument(
+        "--confirm-steps", type=int, help="frames the confirmed tracker's stage evidence must agree (0: hold_steps)"
+    )
+    parser.add_argument("--stage-confidence", type=float, help="P(stage >= j) at which the stage evidence agrees")
     parser.add_argument("--oracle", choices=ORACLE_REWARDS, help="the simulator's reward, used by --reward env")
     parser.add_argument(
         "--overlap-updates",
@@ -292,8 +296,8 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     }
     learned = {
         name: getattr(args, name)
-        for name in ("shaping", "tracker", "stage_source", "stage_evidence")
-        if getattr(args, name)
+        for name in ("shaping", "tracker", "stage_source", "stage_evidence", "confirm_steps", "stage_confidence")
+        if getattr(args, name) is not None
     }
     if learned:
         overrides["learned_reward"] = learned

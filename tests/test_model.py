@@ -127,10 +127,16 @@ def test_pretraining_options_for_augmentation_and_the_device(tiny_tcc_run, tmp_p
     config, _ = parse_args([dataset, "--out", "x", "--augment-shift", "8", "--augment-brightness", "0.4"])
     assert (config.augment.max_shift, config.augment.brightness, config.augment.contrast) == (8, 0.4, 0.2)
     assert config.device == "cpu" and "device" not in config.settings_that_matter()  # a resumed run may move
-    for device, message in (("tpu", "unknown device 'tpu'"), ("cuda", "sees no GPU")):
-        if device == "cuda" and torch.cuda.is_available():
+    bad_inputs = (
+        (["--device", "tpu"], "unknown device 'tpu'"),
+        (["--device", "cuda"], "sees no GPU"),
+        (["--augment-shift", "-1"], "max_shift must be >= 0"),
+        (["--augment-brightness", "1.5"], "brightness must be in [0, 1)"),
+    )
+    for flags, message in bad_inputs:
+        if "cuda" in flags and torch.cuda.is_available():
             continue
-        assert main([dataset, "--out", str(tmp_path / device), "--device", device]) == 2
+        assert main([dataset, "--out", str(tmp_path / "run"), *flags]) == 2
         error = capsys.readouterr().err
         assert error.count("\n") == 1 and message in error
-        assert not (tmp_path / device).exists()  # refused before a run folder is made
+        assert not (tmp_path / "run").exists()  # refused before a run folder is made

@@ -158,6 +158,13 @@ class AugmentConfig:
     brightness: float = 0.2  # factor drawn from [1 - b, 1 + b]
     contrast: float = 0.2
 
+    def __post_init__(self) -> None:
+        if self.max_shift < 0:
+            raise ValueError(f"augment max_shift must be >= 0 pixels, got {self.max_shift}")
+        for name in ("brightness", "contrast"):
+            if not 0.0 <= getattr(self, name) < 1.0:  # a factor of 1 - b must stay positive
+                raise ValueError(f"augment {name} must be in [0, 1), got {getattr(self, name)}")
+
 
 def augment_videos(clips: torch.Tensor, config: AugmentConfig, generator: torch.Generator) -> torch.Tensor:
     """clips: float (B, T, 3, S, S) in [-1, 1]; one draw of every parameter per video, so

@@ -137,7 +137,8 @@ def test_the_thesis_config_reproduces_the_rewards_from_before_reward_configs():
         scorer = RewardScorer(model, scheme=3, intrinsic=intrinsic, config=RewardConfig("thesis", "threshold"))
         steps = [scorer.score_embeddings(np.array([[x, 0.3]])) for x in TODAY_XS]
         for name, expected in TODAY.items():
-            np.testing.assert_allclose([getattr(s, name)[0] for s in steps], expected, rtol=1e-6, atol=1e-7)
+            # float32 nearest-neighbour distances round differently on different CPUs (1.5e-5 seen)
+            np.testing.assert_allclose([getattr(s, name)[0] for s in steps], expected, rtol=1e-6, atol=1e-4)
         assert [int(s.switched[0]) for s in steps] == [0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0]
 
 

@@ -36,8 +36,8 @@ declare -A METHODS=(
   [inest3-scene-none]="--reward inest --model $SCENE_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000"
   [inest3-scene-embedding]="--reward inest --model $SCENE_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
   [inest3-scene96-embedding]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
-  # the same head confirming a completion on one frame at P >= 0.8 (no lag; docs/reward-signal.md, "The tracker's lag")
-  [inest3-scene96-embedding-confirm1]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --confirm-steps 1 --stage-confidence 0.8 --total-steps 300000"
+  # the same head with the two-speed confirmation: one frame at P >= 0.9 confirms at once (docs/reward-signal.md, "The tracker's lag")
+  [inest3-scene96-embedding-instant09]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --instant-confidence 0.9 --total-steps 300000"
   [inest3-scene96-embedding-state-obs]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --observation state --total-steps 300000"
   # one camera for all: the allocentric encoder (shaping) and its 96 px stage heads
   [inest3-allo96-embedding]="--reward inest --model $ALLO96_MODEL --view allo --intrinsic embedding --stage-evidence pixels --total-steps 300000"

@@ -68,6 +68,9 @@ def test_false_completions_follow_the_true_ordered_progress():
     assert false_completions([[5, 9], [], []], play, 3).tolist() == [False, False, False]  # reopened, done again
     assert false_completions([[1, 5], [], []], play, 3).tolist() == [True, False, False]  # once false is enough
     assert false_completions([[9]], play, 1).tolist() == [True]  # 1 subtask: done only at progress 3
+    # an early completion (red 2 frames before it counts) is not unearned; blue on frame 6 is (done on frame 9)
+    assert false_completions([[2], [6], []], play, 3, early_frames=2).tolist() == [False, True, False]
+    assert false_completions([[2], [6], []], play, 3, early_frames=3).tolist() == [False, False, False]
     held = np.array([0, 0, 1, 0, 0, 0, 0, 0, 0, 0], bool)
     grasp = Clip(play.frames, progress, held)
     # 6 subtasks: grasp red done from frame 2 on, push red from frame 4 on, grasp blue never

@@ -52,6 +52,8 @@ def test_reward_config_validates_its_fields():
         {"stage_confidence": 1.0},
         {"confirm_window": -1},
         {"confirm_steps": -1},
+        {"instant_confidence": 0.4},
+        {"instant_confidence": 1.5},
         {"intrinsic_cap": 0.0},
         {"intrinsic_cap": float("nan")},
     ):
@@ -191,6 +193,18 @@ def test_the_confirmed_tracker_confirms_on_the_first_agreeing_frame_with_one_con
     assert lags == {0: 2, 1: 0}
     scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=RewardConfig("progress", confirm_steps=1))
     assert scorer.new_tracker().agree_steps == 1
+
+
+def test_the_confirmed_tracker_confirms_clear_evidence_at_once_and_weak_evidence_after_its_streak():
+    weak, clear = np.array([1.0, 0.6, 0.0]), np.array([1.0, 0.95, 0.0])  # P(stage >= j), j = 0..2
+    for evidence, expected in ((weak, [0, 0, 0, 0, 1, 0]), (clear, [0, 0, 1, 0, 0, 0])):
+        tracker = ConfirmedTracker([-0.02, -0.02], hold_steps=3, confidence=0.5, window=5, instant=0.9)
+        assert [tracker.step(*AT_GOAL_0, evidence) for _ in range(6)] == expected
+    # before the threshold test has held, even clear evidence confirms nothing
+    tracker = ConfirmedTracker([-0.02, -0.02], hold_steps=3, confidence=0.5, window=5, instant=0.9)
+    assert [tracker.step(*MOVED_ON, clear) for _ in range(4)] == [0] * 4
+    scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=RewardConfig(instant_confidence=0.9))
+    assert scorer.new_tracker().instant == 0.9
 
 
 def test_the_reopening_trackers_in_the_scorer():

@@ -18,11 +18,10 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from inest_common.rosutil import namespaced, ns_stamp, stamp_ns
+from inest_common.rosutil import namespaced, new_executor, ns_stamp, stamp_ns
 from inest_interfaces.msg import Action, EpisodeStatus, Reward, State
 from inest_interfaces.srv import ResetEpisode
 from inest_sim_node.scoring import NUM_BLOCKS
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from stable_baselines3.common.vec_env import VecEnv
@@ -40,7 +39,7 @@ class GraphVecEnv(VecEnv):
         reference = SweepToTopEnv()  # spaces only; the simulation runs in the simulator nodes
         super().__init__(len(namespaces), reference.observation_space, reference.action_space)
         self.node, self.namespaces, self.learned_reward, self.timeout = node, namespaces, learned_reward, timeout
-        self.executor = SingleThreadedExecutor()
+        self.executor = new_executor()
         self.executor.add_node(node)
         qos = QoSProfile(depth=10)
         self.mailboxes = [StepMailbox(learned_reward) for _ in namespaces]

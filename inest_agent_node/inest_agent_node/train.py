@@ -274,6 +274,9 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         "--confirm-steps", type=int, help="frames the confirmed tracker's stage evidence must agree (0: hold_steps)"
     )
     parser.add_argument("--stage-confidence", type=float, help="P(stage >= j) at which the stage evidence agrees")
+    parser.add_argument(
+        "--instant-confidence", type=float, help="P(stage >= j) at which one frame confirms a completion (1: off)"
+    )
     parser.add_argument("--oracle", choices=ORACLE_REWARDS, help="the simulator's reward, used by --reward env")
     parser.add_argument(
         "--overlap-updates",
@@ -296,7 +299,10 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     }
     learned = {
         name: getattr(args, name)
-        for name in ("shaping", "tracker", "stage_source", "stage_evidence", "confirm_steps", "stage_confidence")
+        for name in (
+            *("shaping", "tracker", "stage_source", "stage_evidence"),
+            *("confirm_steps", "stage_confidence", "instant_confidence"),
+        )
         if getattr(args, name) is not None
     }
     if learned:

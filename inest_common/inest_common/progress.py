@@ -34,4 +34,5 @@ def track(iterable: Iterable[Any] | None = None, **kwargs: Any) -> tqdm:
     if kwargs.get("disable") or stream.isatty():
         return tqdm(iterable, file=stream, **kwargs)
     kwargs.setdefault("mininterval", LINE_INTERVAL)
+    kwargs["leave"] = True  # a log keeps the final line: leave=False would end it on the first one, at 0 %
     return tqdm(iterable, file=LineStream(stream), ascii=True, ncols=100, **kwargs)

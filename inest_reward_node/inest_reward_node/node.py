@@ -28,9 +28,8 @@ from dataclasses import dataclass
 import rclpy
 import torch
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from inest_common.rosutil import declare_dataclass, namespaced, ns_stamp, run_node, stamp_ns
+from inest_common.rosutil import declare_dataclass, namespaced, new_executor, ns_stamp, run_node, stamp_ns
 from inest_interfaces.msg import Reward
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Image
@@ -235,7 +234,7 @@ class RewardNode(Node):
 
     def spin(self) -> None:
         """Take every callback that is ready, then score what arrived in one batch."""
-        executor = SingleThreadedExecutor()
+        executor = new_executor()
         executor.add_node(self)
         try:
             while rclpy.ok():

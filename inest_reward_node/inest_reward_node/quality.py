@@ -40,8 +40,11 @@ Per subtask k (report key `per_subtask`, one entry per subtask, in order):
   Negatives: `random` (uniform random actions, clips.random_play) and `wrong_order` (the
   scripted expert placing blue, then red, then yellow), --negative-episodes of each, 100 steps,
   on layout seeds no other episode uses (random from 41,000,000, wrong order from 41,500,000;
-  calibration's random and wrong-order play use 40,000,000 and 40,500,000 on); the camera frame
-  after every step is scored, as in training. `false_completion_any`: with any subtask.
+  calibration's random and wrong-order play use 40,000,000 and 40,500,000 on;
+  --negative-seed-offset moves both, for a selection set); the camera frame after every step is
+  scored, as in training. `false_completion_any`: with any subtask.
+- unearned_completion_rate: the same, counting only false completions that no true completion
+  of k followed within UNEARNED_AFTER frames (an early switch is false but not unearned).
 
 Every reward is scored through `RewardScorer` (`rewards.replay`); --scorer-option key=value
 (repeatable; the value is read as JSON when it parses, else as a string) chooses the scorer:
@@ -91,6 +94,7 @@ DEFAULT_NEGATIVE_EPISODES = 40
 MIN_WITHIN_FRAMES = 3  # fewer frames of a subtask: no within-subtask correlation for that demonstration
 
 
+UNEARNED_AFTER = 5  # a false completion the true one follows within this many frames was early, not unearned
 SETTLE_FRAMES = 10  # copies of a demonstration's last frame the tracker replay goes on over
 
 
@@ -161,34 +165,40 @@ def completion_lags(completion_frames: Sequence[int], ends: np.ndarray) -> np.nd
     return lags
 
 
-def false_completions(events: Sequence[Sequence[int]], episode: Clip, scheme: int) -> np.ndarray:
+def false_completions(events: Sequence[Sequence[int]], episode: Clip, scheme: int, early_frames: int = 0) -> np.ndarray:
     """(subtasks,) bool: the tracker marked k done (on the frames `events[k]`, see
     Replay.completion_events) at least once on a frame where k was not really complete
-    (`Clip.not_yet_completed`: the ordered progress, mapped through the scheme's labels)."""
+    (`Clip.not_yet_completed`: the ordered progress, mapped through the scheme's labels) and
+    did not really complete within the next `early_frames` frames either (0: any false frame
+    counts; UNEARNED_AFTER tells an early completion from one the episode never earns)."""
     flags = np.zeros(len(events), dtype=bool)
     for k, frames in enumerate(events):
         not_done = episode.not_yet_completed(scheme, k)
-        flags[k] = any(bool(not_done[frame]) for frame in frames)
+        flags[k] = any(bool(not_done[frame : frame + early_frames + 1].all()) for frame in frames)
     return flags
 
 
 # --- negative episodes -----------------------------------------------------------------------
 def record_negatives(
-    view: str, image_size: int, episodes: int, clip_files: Sequence[str] = ()
+    view: str, image_size: int, episodes: int, clip_files: Sequence[str] = (), seed_offset: int = 0
 ) -> dict[str, list[Clip]]:
     """`episodes` random-policy (clips.random_play) and `episodes` wrong-order expert episodes, on
-    the layout seeds NEGATIVE_SEEDS[kind] + i, frames after every step; and, if given, every
+    the layout seeds NEGATIVE_SEEDS[kind] + seed_offset + i, frames after every step; and, if given, every
     clip of `clip_files` (kind "clips", e.g. a trained policy's own rollouts)."""
     negatives = {
-        "random": random_play(view, image_size, episodes, seed=NEGATIVE_SEEDS["random"]),
-        "wrong_order": wrong_order_play(view, image_size, episodes, NEGATIVE_SEEDS["wrong_order"], (WRONG_ORDER,)),
+        "random": random_play(view, image_size, episodes, seed=NEGATIVE_SEEDS["random"] + seed_offset),
+        "wrong_order": wrong_order_play(
+            view, image_size, episodes, NEGATIVE_SEEDS["wrong_order"] + seed_offset, (WRONG_ORDER,)
+        ),
     }
     if clip_files:
         negatives["clips"] = [clip for path in clip_files for clip in load_clips(path, view, image_size)]
     return negatives
 
 
-def describe_negatives(negatives: dict[str, list[Clip]], clip_files: Sequence[str] = ()) -> dict[str, Any]:
+def describe_negatives(
+    negatives: dict[str, list[Clip]], clip_files: Sequence[str] = (), seed_offset: int = 0
+) -> dict[str, Any]:
     """What the negatives were, per kind, with the true ordered progress they reached."""
     policies = {
         "random": "uniform random actions",
@@ -199,7 +209,7 @@ def describe_negatives(negatives: dict[str, list[Clip]], clip_files: Sequence[st
     for kind, episodes in negatives.items():
         described[kind] = {
             "episodes": len(episodes),
-            "first_seed": NEGATIVE_SEEDS.get(kind),
+            "first_seed": NEGATIVE_SEEDS[kind] + seed_offset if kind in NEGATIVE_SEEDS else None,
             "policy": policies[kind],
             "true_final_progress_mean": float(np.mean([e.progress[-1] for e in episodes])) if episodes else None,
             "true_progress_max": int(max(e.progress.max() for e in episodes)) if episodes else None,
@@ -215,16 +225,18 @@ def negative_flags(
     variant: str,
     scorer_options: dict[str, Any] | None = None,
     stage_episodes: list[Clip] | None = None,
+    early_frames: int = 0,
 ) -> np.ndarray:
-    """(episodes, subtasks) bool: a fresh scorer's false completions on each negative episode.
-    `stage_episodes`: the same episodes through the stage head's camera, when it is another."""
+    """(episodes, subtasks) bool: a fresh scorer's false completions on each negative episode
+    (false_completions with `early_frames`). `stage_episodes`: the same episodes through the
+    stage head's camera, when it is another."""
     num_subtasks = len(model.goals(scheme).goals)
     rows = []
     seen = stage_episodes or episodes
     for episode, embedded, viewed in zip(episodes, embeddings, seen, strict=True):
         played = replay(model, embedded, scheme, variant, scorer_options, viewed.frames, episode.progress)
         events = [played.completion_events(k) for k in range(num_subtasks)]
-        rows.append(false_completions(events, episode, scheme))
+        rows.append(false_completions(events, episode, scheme, early_frames))
     return np.stack(rows) if rows else np.zeros((0, num_subtasks), dtype=bool)
 
 
@@ -326,9 +338,13 @@ def finite_stats(values: np.ndarray, **statistics: Callable[[np.ndarray], float]
 
 
 def per_subtask_summary(
-    results: list[DemoQuality], scheme: int, negatives: dict[str, np.ndarray]
+    results: list[DemoQuality],
+    scheme: int,
+    negatives: dict[str, np.ndarray],
+    unearned: dict[str, np.ndarray] | None = None,
 ) -> list[dict[str, Any]]:
-    """One entry per subtask (see the module doc); `negatives[kind]`: (episodes, subtasks) false completions."""
+    """One entry per subtask (see the module doc); `negatives[kind]`: (episodes, subtasks) false
+    completions, `unearned[kind]` those of them no true completion followed within UNEARNED_AFTER frames."""
     within_shaping = np.stack([r.within_shaping for r in results])
     within_embedding = np.stack([r.within_embedding for r in results])
     dips = np.stack([r.dips for r in results])
@@ -358,6 +374,9 @@ def per_subtask_summary(
                 "miss_rate": float(np.mean(~np.isfinite(lags[:, k]))),
                 "false_completion_rate": {
                     kind: float(flags[:, k].mean()) if len(flags) else None for kind, flags in negatives.items()
+                },
+                "unearned_completion_rate": {
+                    kind: float(flags[:, k].mean()) if len(flags) else None for kind, flags in (unearned or {}).items()
                 },
             }
         )
@@ -573,9 +592,10 @@ def evaluate(
     negative_episodes: int = DEFAULT_NEGATIVE_EPISODES,
     clip_files: Sequence[str] = (),
     stage_frames: list[np.ndarray] | None = None,
+    negative_seed_offset: int = 0,
 ) -> dict[str, Any]:
     """The report over `demos` for every scheme, with `negative_episodes` negatives of each kind
-    (and the clips of `clip_files`);
+    (layout seeds moved by `negative_seed_offset`) and the clips of `clip_files`;
     every reward is scored by `RewardScorer(model, scheme, variant, **scorer_options)`. A stage
     head that reads another camera than the encoder needs the demonstrations through it
     (`stage_frames`, load_stage_frames); the negatives are played through both."""
@@ -591,8 +611,11 @@ def evaluate(
         model.embed(demo.frames) for demo in track(demos, desc="embedding", disable=not progress_bar, leave=False)
     ]
     with track(total=1, desc="negative episodes", disable=not progress_bar, leave=False) as bar:
-        negatives = record_negatives(model.view, model.image_size, negative_episodes, clip_files)
-        seen = negatives if camera is None else record_negatives(camera, model.image_size, negative_episodes)
+        negatives = record_negatives(model.view, model.image_size, negative_episodes, clip_files, negative_seed_offset)
+        if camera is None:
+            seen = negatives
+        else:
+            seen = record_negatives(camera, model.image_size, negative_episodes, seed_offset=negative_seed_offset)
         bar.update(1)
     negative_embeddings = {
         kind: [model.embed(episode.frames) for episode in episodes] for kind, episodes in negatives.items()
@@ -601,7 +624,7 @@ def evaluate(
         "model": model.metadata.to_dict(),
         "normalisation": __doc__,
         "scorer_options": json_ready(scorer_options),
-        "negatives": describe_negatives(negatives, clip_files),
+        "negatives": describe_negatives(negatives, clip_files, negative_seed_offset),
         "notes": SUMMARY_NOTES,
         "schemes": {},
     }
@@ -612,14 +635,18 @@ def evaluate(
             demo_quality(model, demo, emb, scheme, variant, scorer_options, frames)
             for demo, emb, frames in zip(demos, embeddings, stage_frames or [None] * len(demos), strict=True)
         ]
-        flags = {
-            kind: negative_flags(
-                model, negatives[kind], negative_embeddings[kind], scheme, variant, scorer_options, seen[kind]
-            )
-            for kind in negatives
-        }
+        flags, unearned = (
+            {
+                kind: negative_flags(
+                    *(model, negatives[kind], negative_embeddings[kind], scheme, variant),
+                    *(scorer_options, seen[kind], early),
+                )
+                for kind in negatives
+            }
+            for early in (0, UNEARNED_AFTER)
+        )
         summary = {"variant": variant, "scorer": scorer, **summarise(results)}
-        summary["per_subtask"] = per_subtask_summary(results, scheme, flags)
+        summary["per_subtask"] = per_subtask_summary(results, scheme, flags, unearned)
         summary["false_completion_any"] = {
             kind: float(rows.any(axis=1).mean()) if len(rows) else None for kind, rows in flags.items()
         }
@@ -643,11 +670,17 @@ SUBTASK_COLUMNS = (  # the summary table's per-subtask columns: title, width
     ("false rand", 11),
     ("false wrong", 12),
     ("false clips", 12),
+    ("unearned r/w", 14),
 )
 
 
 def _number(value: float | None, spec: str, width: int) -> str:
     return f"{'-' if value is None else format(value, spec):>{width}}"
+
+
+def _rate_pair(rates: dict[str, float | None]) -> str:
+    """Random / wrong-order rates as one cell, e.g. 0.0/2.5%."""
+    return "/".join("-" if rates.get(kind) is None else f"{100 * rates[kind]:.1f}" for kind in NEGATIVE_SEEDS) + "%"
 
 
 def format_summary(report: dict[str, Any]) -> str:
@@ -677,6 +710,7 @@ def format_summary(report: dict[str, Any]) -> str:
                 (false.get("random"), ".1%"),
                 (false.get("wrong_order"), ".1%"),
                 (false.get("clips"), ".1%"),
+                (_rate_pair(sub.get("unearned_completion_rate", {})), ""),
             )
             cells = "".join(
                 _number(value, spec, width) for (value, spec), (_, width) in zip(values, SUBTASK_COLUMNS, strict=True)
@@ -687,7 +721,8 @@ def format_summary(report: dict[str, Any]) -> str:
         counts = ", ".join(f"{entry['episodes']} {kind}" for kind, entry in negatives.items())
         lines.append(
             f"rho: median within-subtask Spearman vs time; dip: total after - before each completion; "
-            f"false: share of negative episodes ({counts})"
+            f"false: share of negative episodes ({counts}); unearned: false completions no true completion "
+            f"followed within {UNEARNED_AFTER} frames"
         )
     return "\n".join(lines)
 
@@ -706,6 +741,12 @@ def main(argv: list[str] | None = None) -> int:
         default=DEFAULT_NEGATIVE_EPISODES,
         help=f"random-policy and wrong-order episodes, each, for the false-completion rates (default "
         f"{DEFAULT_NEGATIVE_EPISODES}; 0 skips them)",
+    )
+    parser.add_argument(
+        "--negative-seed-offset",
+        type=int,
+        default=0,
+        help="moves the negatives' layout seeds, for a selection set the reported figures never see (default 0)",
     )
     parser.add_argument(
         "--clips",
@@ -748,6 +789,7 @@ def main(argv: list[str] | None = None) -> int:
             negative_episodes=args.negative_episodes,
             clip_files=args.clips,
             stage_frames=load_stage_frames(model, schemes, scorer_options, args.dataset, args.split, args.limit),
+            negative_seed_offset=args.negative_seed_offset,
         )
     except (ModelError, DatasetError, ScorerOptionError, ClipError) as error:
         print(f"inest-reward-quality: {error}", file=sys.stderr)

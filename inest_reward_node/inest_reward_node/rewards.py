@@ -295,7 +295,12 @@ class RewardScorer:
             return ClassifierTracker(len(thresholds), self.hold_steps, config.stage_confidence)
         if config.tracker == "confirmed":
             return ConfirmedTracker(
-                thresholds, self.hold_steps, config.stage_confidence, config.confirm_window, config.confirm_steps
+                thresholds,
+                self.hold_steps,
+                config.stage_confidence,
+                config.confirm_window,
+                config.confirm_steps,
+                config.instant_confidence,
             )
         if config.tracker == "reopening":
             return ReopeningTracker(thresholds, self.hold_steps)

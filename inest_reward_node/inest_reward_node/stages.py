@@ -89,6 +89,10 @@ class RewardConfig:
     confirm_steps: frames in a row the classifier must agree to confirm a completion; 0: hold_steps,
       the streak the threshold test needs. 1 confirms on the first frame the classifier agrees,
       which shortens the tracker's lag behind the true completion (docs/reward-signal.md).
+    instant_confidence: P(stage >= j) at which one frame of agreement confirms at once, ahead of
+      confirm_steps: a two-speed test, strong evidence switches on the frame and weak evidence
+      after confirm_steps frames (no lag on clear completions, the streak's honesty on unclear
+      ones); 1 (default): off.
     intrinsic_cap: the weighted novelty bonus (after the post-switch boost) is clipped to at most
       this; None (or inf) for no clip.
     """
@@ -101,6 +105,7 @@ class RewardConfig:
     stage_confidence: float = 0.5
     confirm_window: int = 20
     confirm_steps: int = 0
+    instant_confidence: float = 1.0
     intrinsic_cap: float | None = None
 
     def __post_init__(self) -> None:
@@ -120,6 +125,10 @@ class RewardConfig:
             raise ValueError(f"confirm_window must be >= 0, got {self.confirm_window}")
         if self.confirm_steps < 0:
             raise ValueError(f"confirm_steps must be >= 0 (0: hold_steps), got {self.confirm_steps}")
+        if not self.stage_confidence <= self.instant_confidence <= 1.0:
+            raise ValueError(
+                f"instant_confidence must be in [stage_confidence, 1] (1: off), got {self.instant_confidence}"
+            )
         if self.intrinsic_cap is not None and not self.intrinsic_cap > 0:  # also rejects NaN
             raise ValueError(f"intrinsic_cap must be positive (or None for no cap), got {self.intrinsic_cap}")
 
@@ -381,16 +390,24 @@ class ConfirmedTracker(ReopeningTracker):
     """Completes subtask c when the threshold test has held for `hold_steps` frames and, within
     `window` frames of that, the stage classifier says P(stage >= c + 1) >= confidence for
     `agree_steps` frames in a row (default `hold_steps`; the classifier lags the distance test by a
-    frame or two, and each frame of agreement asked for adds to the lag);
+    frame or two, and each frame of agreement asked for adds to the lag), or for one frame with
+    P >= `instant` (below 1: a two-speed test that confirms clear completions without lag);
     reopens like ReopeningTracker. Each test alone is fooled by different frames (on the
     default model the threshold test by 10 % of random and 55 % of wrong-order episodes, the
     classifier by 55 % and 100 %); together they completed a subtask falsely in 0 % and 5 %,
     and missed 1-4 % of the demonstrations' completions."""
 
     def __init__(
-        self, thresholds: Sequence[float], hold_steps: int, confidence: float, window: int, agree_steps: int = 0
+        self,
+        thresholds: Sequence[float],
+        hold_steps: int,
+        confidence: float,
+        window: int,
+        agree_steps: int = 0,
+        instant: float = 1.0,
     ) -> None:
         self.confidence, self.window = confidence, window
+        self.instant = instant if instant < 1.0 else math.inf
         self.agree_steps = agree_steps or hold_steps
         super().__init__(thresholds, hold_steps)
 
@@ -406,11 +423,13 @@ class ConfirmedTracker(ReopeningTracker):
             self.waited = 0
         elif self.waited >= 0:
             self.waited += 1
+        certain = False
         if self.waited >= 0 and c < self.num_subtasks:
             self.agreed = self.agreed + 1 if at_least[c + 1] >= self.confidence else 0
+            certain = at_least[c + 1] >= self.instant
         self.down_streak = self.down_streak + 1 if self.undone(rewards, segments) else 0
         change = 0
-        if self.waited >= 0 and self.agreed >= self.agree_steps:
+        if self.waited >= 0 and (self.agreed >= self.agree_steps or certain):
             self.completed, change = c + 1, 1
         elif self.down_streak >= self.hold_steps:
             self.completed, change = c - 1, -1

@@ -21,6 +21,7 @@ declare -A REPORTS=(
   [quality-scene96-confirm1]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=1"
   [quality-scene96-confirm1-conf08]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=1 --scorer-option stage_confidence=0.8"
   [quality-scene96-confirm2]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=2"
+  [quality-scene96-instant09]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option instant_confidence=0.9"
   [quality-scene96-privileged]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} ${PRIVILEGED[*]}"
   [allo-encoder/quality]="$OUT/allo-encoder/model --schemes 1 3 --scorer-option stage_evidence=embedding"
   [allo-encoder/quality-pixels]="$OUT/allo-encoder/model --schemes 3 ${PIXELS[*]}"

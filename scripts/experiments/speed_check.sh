@@ -5,7 +5,8 @@
 # that revision (a git worktree, its packages first on the path) into OUT/base/, alternating
 # with this tree's, so a refactoring can be shown to leave the speed unchanged.
 #   bash scripts/experiments/speed_check.sh [BASE_REV] [OUT]   # OUT default results/benchmarks
-# Environment: INEST_MODEL (reward model folder, default results/long-horizon/reward-model).
+# Environment: INEST_MODEL (reward model folder, default results/long-horizon/reward-model),
+# INEST_ONLY (benchmark names to run, e.g. "graph_train_speed reward_node_flood"; default all).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$ROOT"
@@ -18,6 +19,7 @@ mkdir -p "$OUT"
 measure() {  # TREE OUT_FILE SCRIPT [ARG ...]: one benchmark of TREE, its JSON plus the load
   local tree=$1 file=$2 script=$3
   shift 3
+  [ -z "${INEST_ONLY:-}" ] || [[ " $INEST_ONLY " == *" ${script%.py} "* ]] || return 0
   local path="$tree/inest_common:$tree/inest_sim_node:$tree/inest_reward_node:$tree/inest_agent_node:$tree/ros2_ws/src/inest_bringup"
   local before revision
   before=$(cut -d' ' -f1 /proc/loadavg)

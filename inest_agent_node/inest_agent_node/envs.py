@@ -221,39 +221,53 @@ class StageObservationVecEnv(VecEnvWrapper):
         return stage_observation(observations, stages, self.num_subtasks), rewards, dones, infos
 
 
-class ConcurrentUpdatesVecEnv(VecEnvWrapper):
-    """In-process environments that run `while_waiting` (an overlapped learner's deferred
-    updates, learners.OverlappedUpdatesMixin) on a second thread while they step and score.
+class UpdateThread:
+    """Runs an overlapped learner's deferred updates (learners.OverlappedUpdatesMixin) on a second
+    thread while the environments step: on two cores the update (XLA or torch kernels, which
+    release the GIL) gets one and the simulation, the reward and the messages the other. It is
+    joined before the step returns, and the step neither reads the policy nor writes the replay
+    buffer, so the two never touch the same state; an error in an update is raised from the join."""
 
-    On two cores the update (XLA or torch kernels, which release the GIL) and the simulation
-    with its reward model each get one. The update thread is joined before the step returns,
-    and the step neither reads the policy nor writes the replay buffer, so the two never touch
-    the same state; an error in an update is raised from the step."""
+    def __init__(self) -> None:
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="inest-updates")
+        self._running: Future | None = None
+
+    def start(self, work: Callable[[], None] | None) -> None:
+        if work is not None:
+            self._running = self._pool.submit(work)
+
+    def join(self) -> None:
+        running, self._running = self._running, None
+        if running is not None:
+            running.result()
+
+    def close(self) -> None:
+        self._pool.shutdown()
+
+
+class ConcurrentUpdatesVecEnv(VecEnvWrapper):
+    """In-process environments that run `while_waiting` on an UpdateThread while they step and score."""
 
     def __init__(self, venv: VecEnv) -> None:
         super().__init__(venv)
         self.while_waiting: Callable[[], None] | None = None
-        self._updates = ThreadPoolExecutor(max_workers=1, thread_name_prefix="inest-updates")
-        self._running: Future | None = None
+        self.updates = UpdateThread()
 
     def reset(self) -> np.ndarray:
         return self.venv.reset()
 
     def step_async(self, actions: np.ndarray) -> None:
-        if self.while_waiting is not None:
-            self._running = self._updates.submit(self.while_waiting)
+        self.updates.start(self.while_waiting)
         self.venv.step_async(actions)
 
     def step_wait(self):
         try:
             return self.venv.step_wait()
         finally:
-            running, self._running = self._running, None
-            if running is not None:
-                running.result()
+            self.updates.join()
 
     def close(self) -> None:
-        self._updates.shutdown()
+        self.updates.close()
         self.venv.close()
 
 

@@ -29,7 +29,7 @@ from std_srvs.srv import Trigger
 
 from inest_sim_node import SweepToTopEnv
 
-from .envs import BONUS, INTRINSIC, LEARNED_STAGE, SHAPING, TRUE_PROGRESS
+from .envs import BONUS, INTRINSIC, LEARNED_STAGE, SHAPING, TRUE_PROGRESS, UpdateThread
 from .learners import BROKEN_STEP
 from .pairing import REWARD, STATE, STATUS, StepMailbox
 
@@ -58,7 +58,8 @@ class GraphVecEnv(VecEnv):
                     Reward, namespaced(namespace, "reward"), lambda m, i=index: self.on_reward(i, m), qos
                 )
                 self.reward_resets.append(node.create_client(Trigger, namespaced(namespace, "reset_reward")))
-        self.while_waiting: Callable[[], None] | None = None  # work to do once the actions are out
+        self.while_waiting: Callable[[], None] | None = None  # work for an UpdateThread while the step runs
+        self.updates = UpdateThread()
         self.stamps = np.zeros(self.num_envs, dtype=np.int64)  # each environment's current observation
         self.actions = np.zeros((self.num_envs, 3), dtype=np.float32)
         self.observations = np.zeros((self.num_envs, *self.observation_space.shape), dtype=np.float32)
@@ -157,6 +158,7 @@ class GraphVecEnv(VecEnv):
 
     def step_async(self, actions: np.ndarray) -> None:
         self.actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
+        self.updates.start(self.while_waiting)  # the actions are chosen: the policy may change now
         for index in range(self.num_envs):
             self.publish_action(index)
 
@@ -195,9 +197,10 @@ class GraphVecEnv(VecEnv):
                 else:
                     self.publish_action(index)
 
-        if self.while_waiting is not None:
-            self.while_waiting()
-        self.wait_until(collect, silent, resend)
+        try:  # the messages are taken as they come, while the update runs
+            self.wait_until(collect, silent, resend)
+        finally:
+            self.updates.join()
         observations = np.zeros((self.num_envs, *self.observation_space.shape), dtype=np.float32)
         rewards = np.zeros(self.num_envs, dtype=np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)
@@ -224,6 +227,7 @@ class GraphVecEnv(VecEnv):
         return observations, rewards, dones, infos
 
     def close(self) -> None:
+        self.updates.close()
         self.executor.shutdown()
 
     # --- the parts of the VecEnv interface that only in-process environments have ---------

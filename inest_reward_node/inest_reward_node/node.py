@@ -30,6 +30,7 @@ import torch
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from inest_common.rosutil import declare_dataclass, namespaced, new_executor, ns_stamp, run_node, stamp_ns
 from inest_interfaces.msg import Reward
+from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Image
@@ -54,6 +55,9 @@ class RewardNodeConfig:
     image_topic: str = "camera/ego/image_raw"
     stage_image_topic: str = "camera/allo/image_raw"  # only for a stage head that reads a second camera
     max_batch: int = 32  # frames per forward pass at most
+    # ms a flush waits for the other streams' frames: lockstep simulators' frames of one round
+    # arrive within a millisecond or two, and one forward pass for all of them costs less than several
+    round_wait_ms: float = 2.0
     max_pending: int = 4  # per stream; older unscored frames are dropped (and counted)
     queue_depth: int = 1000  # per stream, the subscription's: DDS drops beyond it silently, so it holds a burst
     min_image_size: int = 32  # pixels, the shorter side at least: smaller frames are rejected
@@ -78,6 +82,8 @@ class RewardNodeConfig:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if not self.diagnostics_period > 0:
             raise ValueError(f"diagnostics_period must be positive (seconds), got {self.diagnostics_period}")
+        if not 0 <= self.round_wait_ms <= 1000:
+            raise ValueError(f"round_wait_ms must be in [0, 1000], got {self.round_wait_ms}")
         if not self.streams or len(set(self.streams)) != len(self.streams):
             raise ValueError(f"streams must be distinct and at least one, got {list(self.streams)}")
 
@@ -233,23 +239,34 @@ class RewardNode(Node):
         self.diagnostics.publish(array)
 
     def spin(self) -> None:
-        """Take every callback that is ready, then score what arrived in one batch."""
+        """Take every callback that is ready, wait up to `round_wait_ms` for a frame from every
+        stream (a lockstep round), then score what arrived in one batch."""
         executor = new_executor()
         executor.add_node(self)
+        round_wait = self.config.round_wait_ms / 1e3
         try:
             while rclpy.ok():
                 executor.spin_once(timeout_sec=0.1)
-                taken = 0
-                while self.streams.num_pending and taken < self.config.max_batch:
-                    before = self.streams.num_pending
-                    executor.spin_once(timeout_sec=0.0)
-                    if self.streams.num_pending == before:
-                        break
-                    taken += 1
-                if self.streams.num_pending:
-                    self.publish(self.streams.flush())
+                self.take_ready(executor)
+                if not self.streams.num_pending:
+                    continue
+                deadline = time.perf_counter() + round_wait
+                while not self.streams.round_complete and (left := deadline - time.perf_counter()) > 0:
+                    executor.spin_once(timeout_sec=left)
+                    self.take_ready(executor)
+                self.publish(self.streams.flush())
         finally:
             executor.shutdown()
+
+    def take_ready(self, executor: Executor) -> None:
+        """Run the callbacks already waiting, while they bring frames, up to `max_batch`."""
+        taken = 0
+        while self.streams.num_pending and taken < self.config.max_batch:
+            before = self.streams.num_pending
+            executor.spin_once(timeout_sec=0.0)
+            if self.streams.num_pending == before:
+                break
+            taken += 1
 
 
 def main() -> int:

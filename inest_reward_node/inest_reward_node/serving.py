@@ -205,6 +205,11 @@ class StreamScorer:
     def num_pending(self) -> int:
         return sum(len(queue) for queue in self.pending)
 
+    @property
+    def round_complete(self) -> bool:
+        """Every stream has a frame waiting: a flush now scores a whole lockstep round at once."""
+        return all(self.pending)
+
     def reject(self, reason: str, detail: str) -> None:
         """Count and log a frame that will get no reward; `reason` is its short name."""
         self.stats.rejected[reason] += 1

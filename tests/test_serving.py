@@ -45,6 +45,17 @@ def test_one_batch_of_two_streams_scores_like_two_environments_stepped_together(
         assert result.total == pytest.approx(expected[(result.stream, result.stamp)], rel=1e-5, abs=1e-7)
 
 
+def test_a_round_is_complete_once_every_stream_has_a_frame_waiting():
+    streams = StreamScorer(scorer(2), max_pending=10)
+    assert not streams.round_complete
+    streams.submit(0, 100, FRAMES[0])
+    assert not streams.round_complete  # the reward node waits up to round_wait_ms for stream 1
+    streams.submit(1, 7, FRAMES[1])
+    assert streams.round_complete
+    streams.flush()
+    assert not streams.round_complete and streams.stats.batches == 1
+
+
 def test_a_stream_alone_scores_frame_by_frame_even_when_its_frames_arrive_together():
     streams = StreamScorer(scorer(1), max_pending=10)
     for index in range(6):

@@ -123,9 +123,8 @@ class SimNode(Node):
             truncated=self.done,
         )
         status.header.stamp, status.header.frame_id = stamp, "world"
-        # the images first: the reward scored from them is the step's last message to arrive, so
-        # the state and status go out while the reward node scores
-        outputs = [*outputs, (self.state_pub, state_msg), (self.status_pub, status)]
+        # state and status before the images: whoever waits on the reward has them already
+        outputs = [(self.state_pub, state_msg), (self.status_pub, status), *outputs]
         if self.clock_pub is not None:
             outputs.append((self.clock_pub, Clock(clock=stamp)))
         self.last_outputs = outputs

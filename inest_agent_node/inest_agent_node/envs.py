@@ -233,6 +233,7 @@ class UpdateThread:
         self._running: Future | None = None
 
     def start(self, work: Callable[[], None] | None) -> None:
+        self.join()  # one update at a time, and none of its errors lost
         if work is not None:
             self._running = self._pool.submit(work)
 

@@ -13,8 +13,9 @@ from their header fields alone, in constant time, so a flood of them cannot dela
 the stamp policy is serving.py's.
 
 Parameters: the RewardNodeConfig fields, `intrinsic.*` (IntrinsicConfig) and `reward.*`
-(stages.RewardConfig: shaping, tracker, stage_source, hold_steps, stage_confidence,
-intrinsic_cap; `reward.intrinsic_cap:=.inf` is no cap). `reward.stage_source:=privileged`
+(stages.RewardConfig: shaping, tracker, stage_source, stage_evidence, hold_steps,
+stage_confidence, confirm_window, confirm_steps, instant_confidence, intrinsic_cap;
+`reward.intrinsic_cap:=.inf` is no cap). `reward.stage_source:=privileged`
 is refused: the node sees images only, not the simulator's progress.
 """
 
@@ -259,14 +260,13 @@ class RewardNode(Node):
             executor.shutdown()
 
     def take_ready(self, executor: Executor) -> None:
-        """Run the callbacks already waiting, while they bring frames, up to `max_batch`."""
-        taken = 0
-        while self.streams.num_pending and taken < self.config.max_batch:
-            before = self.streams.num_pending
+        """Run the callbacks already waiting, while they bring frames (of either camera), up to
+        `max_batch` pending."""
+        while self.streams.num_pending < self.config.max_batch:
+            before = self.streams.arrivals
             executor.spin_once(timeout_sec=0.0)
-            if self.streams.num_pending == before:
+            if self.streams.arrivals == before:
                 break
-            taken += 1
 
 
 def main() -> int:

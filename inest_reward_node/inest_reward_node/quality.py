@@ -43,8 +43,8 @@ Per subtask k (report key `per_subtask`, one entry per subtask, in order):
   calibration's random and wrong-order play use 40,000,000 and 40,500,000 on;
   --negative-seed-offset moves both, for a selection set); the camera frame after every step is
   scored, as in training. `false_completion_any`: with any subtask.
-- unearned_completion_rate: the same, counting only false completions that no true completion
-  of k followed within UNEARNED_AFTER frames (an early switch is false but not unearned).
+- false_not_early_rate: the same, counting only false completions that no true completion of
+  k followed within NOT_EARLY_AFTER frames (an early switch is false, but the episode earned it).
 
 Every reward is scored through `RewardScorer` (`rewards.replay`); --scorer-option key=value
 (repeatable; the value is read as JSON when it parses, else as a string) chooses the scorer:
@@ -94,7 +94,7 @@ DEFAULT_NEGATIVE_EPISODES = 40
 MIN_WITHIN_FRAMES = 3  # fewer frames of a subtask: no within-subtask correlation for that demonstration
 
 
-UNEARNED_AFTER = 5  # a false completion the true one follows within this many frames was early, not unearned
+NOT_EARLY_AFTER = 5  # a false completion the true one follows within this many frames was only early
 SETTLE_FRAMES = 10  # copies of a demonstration's last frame the tracker replay goes on over
 
 
@@ -170,7 +170,7 @@ def false_completions(events: Sequence[Sequence[int]], episode: Clip, scheme: in
     Replay.completion_events) at least once on a frame where k was not really complete
     (`Clip.not_yet_completed`: the ordered progress, mapped through the scheme's labels) and
     did not really complete within the next `early_frames` frames either (0: any false frame
-    counts; UNEARNED_AFTER tells an early completion from one the episode never earns)."""
+    counts; NOT_EARLY_AFTER tells an early completion from one the episode never earns)."""
     flags = np.zeros(len(events), dtype=bool)
     for k, frames in enumerate(events):
         not_done = episode.not_yet_completed(scheme, k)
@@ -217,6 +217,33 @@ def describe_negatives(
     return described
 
 
+def negative_events(
+    model: RewardModel,
+    episodes: list[Clip],
+    embeddings: list[np.ndarray],
+    scheme: int,
+    variant: str,
+    scorer_options: dict[str, Any] | None = None,
+    stage_episodes: list[Clip] | None = None,
+) -> list[list[list[int]]]:
+    """Per negative episode, a fresh scorer's completion frames of every subtask
+    (Replay.completion_events). `stage_episodes`: the same episodes through the stage head's
+    camera, when it is another."""
+    num_subtasks = len(model.goals(scheme).goals)
+    events = []
+    seen = stage_episodes or episodes
+    for episode, embedded, viewed in zip(episodes, embeddings, seen, strict=True):
+        played = replay(model, embedded, scheme, variant, scorer_options, viewed.frames, episode.progress)
+        events.append([played.completion_events(k) for k in range(num_subtasks)])
+    return events
+
+
+def event_flags(events: list[list[list[int]]], episodes: list[Clip], scheme: int, early_frames: int = 0) -> np.ndarray:
+    """(episodes, subtasks) bool: false_completions of each episode's `events` (negative_events)."""
+    rows = [false_completions(row, clip, scheme, early_frames) for row, clip in zip(events, episodes, strict=True)]
+    return np.stack(rows) if rows else np.zeros((0, 0), dtype=bool)
+
+
 def negative_flags(
     model: RewardModel,
     episodes: list[Clip],
@@ -225,19 +252,12 @@ def negative_flags(
     variant: str,
     scorer_options: dict[str, Any] | None = None,
     stage_episodes: list[Clip] | None = None,
-    early_frames: int = 0,
 ) -> np.ndarray:
-    """(episodes, subtasks) bool: a fresh scorer's false completions on each negative episode
-    (false_completions with `early_frames`). `stage_episodes`: the same episodes through the
-    stage head's camera, when it is another."""
-    num_subtasks = len(model.goals(scheme).goals)
-    rows = []
-    seen = stage_episodes or episodes
-    for episode, embedded, viewed in zip(episodes, embeddings, seen, strict=True):
-        played = replay(model, embedded, scheme, variant, scorer_options, viewed.frames, episode.progress)
-        events = [played.completion_events(k) for k in range(num_subtasks)]
-        rows.append(false_completions(events, episode, scheme, early_frames))
-    return np.stack(rows) if rows else np.zeros((0, num_subtasks), dtype=bool)
+    """(episodes, subtasks) bool: a fresh scorer's false completions on each negative episode."""
+    events = negative_events(model, episodes, embeddings, scheme, variant, scorer_options, stage_episodes)
+    if not events:
+        return np.zeros((0, len(model.goals(scheme).goals)), dtype=bool)
+    return event_flags(events, episodes, scheme)
 
 
 # --- one demonstration ---------------------------------------------------------------------
@@ -341,10 +361,10 @@ def per_subtask_summary(
     results: list[DemoQuality],
     scheme: int,
     negatives: dict[str, np.ndarray],
-    unearned: dict[str, np.ndarray] | None = None,
+    not_early: dict[str, np.ndarray] | None = None,
 ) -> list[dict[str, Any]]:
     """One entry per subtask (see the module doc); `negatives[kind]`: (episodes, subtasks) false
-    completions, `unearned[kind]` those of them no true completion followed within UNEARNED_AFTER frames."""
+    completions, `not_early[kind]` those of them no true completion followed within NOT_EARLY_AFTER frames."""
     within_shaping = np.stack([r.within_shaping for r in results])
     within_embedding = np.stack([r.within_embedding for r in results])
     dips = np.stack([r.dips for r in results])
@@ -375,8 +395,8 @@ def per_subtask_summary(
                 "false_completion_rate": {
                     kind: float(flags[:, k].mean()) if len(flags) else None for kind, flags in negatives.items()
                 },
-                "unearned_completion_rate": {
-                    kind: float(flags[:, k].mean()) if len(flags) else None for kind, flags in (unearned or {}).items()
+                "false_not_early_rate": {
+                    kind: float(flags[:, k].mean()) if len(flags) else None for kind, flags in (not_early or {}).items()
                 },
             }
         )
@@ -412,8 +432,9 @@ SUMMARY_NOTES = {
     "per_subtask": "per subtask k: within-subtask Spearman vs time of the shaping term (reward without bonus and "
     "intrinsic) and of -embedding distance to goal k, over the frames whose true subtask is k; switch dip "
     "total[s+1] - total[s-1] at the tracker's completion frame s (negative = dip); completion lag (tracker minus "
-    "true end, frames) and miss rate; false-completion rate on random and wrong-order negatives. Details: the "
-    "module doc in `normalisation`.",
+    "true end, frames) and miss rate; false-completion rate on random and wrong-order negatives, and of those "
+    "false completions the share no true completion followed within a few frames (false_not_early_rate). Details: "
+    "the module doc in `normalisation`.",
     "false_completion_any": "share of negative episodes with a false completion of any subtask",
     "scorer": "the scorer each scheme was scored with: reward variant and RewardConfig after the scorer options",
 }
@@ -635,18 +656,16 @@ def evaluate(
             demo_quality(model, demo, emb, scheme, variant, scorer_options, frames)
             for demo, emb, frames in zip(demos, embeddings, stage_frames or [None] * len(demos), strict=True)
         ]
-        flags, unearned = (
-            {
-                kind: negative_flags(
-                    *(model, negatives[kind], negative_embeddings[kind], scheme, variant),
-                    *(scorer_options, seen[kind], early),
-                )
-                for kind in negatives
-            }
-            for early in (0, UNEARNED_AFTER)
-        )
+        events = {
+            kind: negative_events(
+                model, negatives[kind], negative_embeddings[kind], scheme, variant, scorer_options, seen[kind]
+            )
+            for kind in negatives
+        }
+        flags = {kind: event_flags(events[kind], negatives[kind], scheme) for kind in negatives}
+        not_early = {kind: event_flags(events[kind], negatives[kind], scheme, NOT_EARLY_AFTER) for kind in negatives}
         summary = {"variant": variant, "scorer": scorer, **summarise(results)}
-        summary["per_subtask"] = per_subtask_summary(results, scheme, flags, unearned)
+        summary["per_subtask"] = per_subtask_summary(results, scheme, flags, not_early)
         summary["false_completion_any"] = {
             kind: float(rows.any(axis=1).mean()) if len(rows) else None for kind, rows in flags.items()
         }
@@ -670,11 +689,11 @@ SUBTASK_COLUMNS = (  # the summary table's per-subtask columns: title, width
     ("false rand", 11),
     ("false wrong", 12),
     ("false clips", 12),
-    ("unearned r/w", 14),
+    ("not early r/w", 14),
 )
 
 
-def _number(value: float | None, spec: str, width: int) -> str:
+def _number(value: float | str | None, spec: str, width: int) -> str:
     return f"{'-' if value is None else format(value, spec):>{width}}"
 
 
@@ -710,7 +729,7 @@ def format_summary(report: dict[str, Any]) -> str:
                 (false.get("random"), ".1%"),
                 (false.get("wrong_order"), ".1%"),
                 (false.get("clips"), ".1%"),
-                (_rate_pair(sub.get("unearned_completion_rate", {})), ""),
+                (_rate_pair(sub.get("false_not_early_rate", {})), ""),
             )
             cells = "".join(
                 _number(value, spec, width) for (value, spec), (_, width) in zip(values, SUBTASK_COLUMNS, strict=True)
@@ -721,8 +740,8 @@ def format_summary(report: dict[str, Any]) -> str:
         counts = ", ".join(f"{entry['episodes']} {kind}" for kind, entry in negatives.items())
         lines.append(
             f"rho: median within-subtask Spearman vs time; dip: total after - before each completion; "
-            f"false: share of negative episodes ({counts}); unearned: false completions no true completion "
-            f"followed within {UNEARNED_AFTER} frames"
+            f"false: share of negative episodes ({counts}); not early: false completions no true completion "
+            f"followed within {NOT_EARLY_AFTER} frames"
         )
     return "\n".join(lines)
 
@@ -767,6 +786,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.negative_episodes < 0:
         parser.error(f"--negative-episodes must be >= 0, got {args.negative_episodes}")
+    if args.negative_seed_offset < 0:
+        parser.error(f"--negative-seed-offset must be >= 0, got {args.negative_seed_offset}")
     options = dict(args.scorer_option)
     if len(options) != len(args.scorer_option):
         parser.error("each --scorer-option key may be given once")

@@ -175,6 +175,7 @@ class StreamScorer:
         # the stage head's second camera: its frames by stamp, waiting for their partners
         self.stage_frames: list[dict[int, np.ndarray]] = [{} for _ in range(scorer.num_envs)]
         self.stats = ServingStats()
+        self.arrivals = 0  # frames submitted so far, of either camera: what a callback brought
 
     @property
     def stage_camera(self) -> str | None:
@@ -184,6 +185,7 @@ class StreamScorer:
     def submit_stage(self, stream: int, stamp: int, frame: np.ndarray) -> None:
         """The stage head's camera frame of `stamp` on `stream`; kept until its partner is scored.
         Only the newest few are kept: a partner that never comes must not grow the store."""
+        self.arrivals += 1
         kept = self.stage_frames[stream]
         kept[stamp] = fit_square(frame, self.scorer.model.image_size, self.resize)
         while len(kept) > 4 * self.max_pending:
@@ -207,8 +209,9 @@ class StreamScorer:
 
     @property
     def round_complete(self) -> bool:
-        """Every stream has a frame waiting: a flush now scores a whole lockstep round at once."""
-        return all(self.pending)
+        """Every stream has a frame ready to score (with its stage frame, when the stage head reads
+        a second camera): a flush now scores a whole lockstep round at once."""
+        return all(queue and self.partner(stream, queue[0]) for stream, queue in enumerate(self.pending))
 
     def reject(self, reason: str, detail: str) -> None:
         """Count and log a frame that will get no reward; `reason` is its short name."""
@@ -225,6 +228,7 @@ class StreamScorer:
     ) -> list[ScoredFrame]:
         """Queue one frame. Returns what had to be scored before it could be taken (the old episode's
         frames when a backward stamp starts a new one), usually nothing."""
+        self.arrivals += 1
         arrived = time.perf_counter() if received is None else received
         frame = fit_square(frame, self.scorer.model.image_size, self.resize)
         newest = self.newest[stream]

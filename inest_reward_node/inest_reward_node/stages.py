@@ -127,7 +127,8 @@ class RewardConfig:
             raise ValueError(f"confirm_steps must be >= 0 (0: hold_steps), got {self.confirm_steps}")
         if not self.stage_confidence <= self.instant_confidence <= 1.0:
             raise ValueError(
-                f"instant_confidence must be in [stage_confidence, 1] (1: off), got {self.instant_confidence}"
+                f"instant_confidence must be in [stage_confidence, 1] = [{self.stage_confidence}, 1] (1: off), "
+                f"got {self.instant_confidence}"
             )
         if self.intrinsic_cap is not None and not self.intrinsic_cap > 0:  # also rejects NaN
             raise ValueError(f"intrinsic_cap must be positive (or None for no cap), got {self.intrinsic_cap}")

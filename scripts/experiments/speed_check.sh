@@ -15,6 +15,9 @@ OUT=$(realpath -m "${2:-$ROOT/results/benchmarks}")
 BIN="${INEST_VENV:-$ROOT/.venv}/bin"
 MODEL=$(realpath "${INEST_MODEL:-results/long-horizon/reward-model}")
 mkdir -p "$OUT"
+for name in ${INEST_ONLY:-}; do
+  [ -f "benchmarks/$name.py" ] || { echo "speed_check: no benchmark $name (INEST_ONLY)" >&2; exit 2; }
+done
 
 measure() {  # TREE OUT_FILE SCRIPT [ARG ...]: one benchmark of TREE, its JSON plus the load
   local tree=$1 file=$2 script=$3

@@ -11,8 +11,9 @@ from inest_reward_node.quality import (
     ScorerOptionError,
     completion_lags,
     demo_quality,
+    event_flags,
     false_completions,
-    negative_flags,
+    negative_events,
     parse_scorer_option,
     rank_correlation,
     record_negatives,
@@ -68,7 +69,7 @@ def test_false_completions_follow_the_true_ordered_progress():
     assert false_completions([[5, 9], [], []], play, 3).tolist() == [False, False, False]  # reopened, done again
     assert false_completions([[1, 5], [], []], play, 3).tolist() == [True, False, False]  # once false is enough
     assert false_completions([[9]], play, 1).tolist() == [True]  # 1 subtask: done only at progress 3
-    # an early completion (red 2 frames before it counts) is not unearned; blue on frame 6 is (done on frame 9)
+    # an early completion (red 2 frames before it counts) is only early; blue on frame 6 is not (done on frame 9)
     assert false_completions([[2], [6], []], play, 3, early_frames=2).tolist() == [False, True, False]
     assert false_completions([[2], [6], []], play, 3, early_frames=3).tolist() == [False, False, False]
     held = np.array([0, 0, 1, 0, 0, 0, 0, 0, 0, 0], bool)
@@ -76,6 +77,11 @@ def test_false_completions_follow_the_true_ordered_progress():
     # 6 subtasks: grasp red done from frame 2 on, push red from frame 4 on, grasp blue never
     assert false_completions([[2], [4], [6], [], [], []], grasp, 6).tolist() == [False, False, True] + [False] * 3
     assert false_completions([[1], [], [], [], [], []], grasp, 6).tolist()[0]
+
+
+def false_flags(model, episodes, embeddings, scorer_options):
+    """(episodes, 3) false completions of the 3-subtask INEST reward on negative episodes."""
+    return event_flags(negative_events(model, episodes, embeddings, 3, "inest", scorer_options), episodes, 3)
 
 
 @pytest.fixture(scope="module")
@@ -101,7 +107,7 @@ def test_a_tracker_firing_on_a_random_episode_counts_as_a_false_completion(tiny_
     saved = list(goals.thresholds)
 
     def flags(kind):
-        return negative_flags(tiny_model, episodes[kind], embeddings[kind], 3, "inest", THRESHOLD_TRACKER)
+        return false_flags(tiny_model, episodes[kind], embeddings[kind], THRESHOLD_TRACKER)
 
     try:
         goals.thresholds = [-np.inf] * 3  # fires after hold_steps frames on anything
@@ -192,7 +198,7 @@ def test_the_report_replays_a_pixel_stage_tracker_on_the_frames(tiny_model, tiny
     with pytest.raises(ValueError, match="needs every frame's stage_evidence"):
         rewards.replay(tiny_model, embeddings, 3, "inest", pixels)
     episodes, embedded = negatives
-    flags = negative_flags(tiny_model, episodes["random"], embedded["random"], 3, "inest", pixels)
+    flags = false_flags(tiny_model, episodes["random"], embedded["random"], pixels)
     assert flags.shape == (len(episodes["random"]), 3)
 
 
@@ -204,5 +210,5 @@ def test_the_privileged_stage_diagnostic_replays_the_true_progress(tiny_model, t
     assert np.all(result.lags == 0)
     np.testing.assert_array_equal(result.replay.completed, np.minimum(demo.progress, 3))
     episodes, embedded = negatives
-    flags = negative_flags(tiny_model, episodes["random"], embedded["random"], 3, "inest", privileged)
+    flags = false_flags(tiny_model, episodes["random"], embedded["random"], privileged)
     assert not flags.any()  # the true stage claims no block that is not placed

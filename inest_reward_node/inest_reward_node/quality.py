@@ -244,22 +244,6 @@ def event_flags(events: list[list[list[int]]], episodes: list[Clip], scheme: int
     return np.stack(rows) if rows else np.zeros((0, 0), dtype=bool)
 
 
-def negative_flags(
-    model: RewardModel,
-    episodes: list[Clip],
-    embeddings: list[np.ndarray],
-    scheme: int,
-    variant: str,
-    scorer_options: dict[str, Any] | None = None,
-    stage_episodes: list[Clip] | None = None,
-) -> np.ndarray:
-    """(episodes, subtasks) bool: a fresh scorer's false completions on each negative episode."""
-    events = negative_events(model, episodes, embeddings, scheme, variant, scorer_options, stage_episodes)
-    if not events:
-        return np.zeros((0, len(model.goals(scheme).goals)), dtype=bool)
-    return event_flags(events, episodes, scheme)
-
-
 # --- one demonstration ---------------------------------------------------------------------
 @dataclass
 class DemoQuality:

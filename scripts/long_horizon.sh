@@ -10,6 +10,7 @@
 # INEST_PIXEL_MODEL (the same with pixel stage heads, default results/long-horizon/reward-model-pixel),
 # INEST_SCENE_MODEL (the same encoder with scene-camera stage heads, default results/long-horizon/reward-model-scene),
 # INEST_SCENE96_MODEL (the same with 96 px scene-camera stage heads, default results/long-horizon/reward-model-scene96),
+# INEST_SCENE96_600_MODEL (the same with the scene heads fitted on 600 demonstrations, default results/long-horizon/reward-model-scene96-600demos),
 # INEST_ALLO96_MODEL (the allocentric encoder with 96 px stage heads on its own camera, default results/long-horizon/reward-model-allo96),
 # INEST_SEEDS (default "0 1 2"), INEST_PARALLEL (default 2), INEST_THREADS (torch/JAX threads per run, default 1).
 set -euo pipefail
@@ -20,36 +21,41 @@ MODEL="${INEST_MODEL:-results/long-horizon/reward-model}"
 PIXEL_MODEL="${INEST_PIXEL_MODEL:-results/long-horizon/reward-model-pixel}"  # + pixel stage heads
 SCENE_MODEL="${INEST_SCENE_MODEL:-results/long-horizon/reward-model-scene}"  # + stage heads on the allocentric camera
 SCENE96_MODEL="${INEST_SCENE96_MODEL:-results/long-horizon/reward-model-scene96}"  # the same heads at 96 px
+SCENE96_600_MODEL="${INEST_SCENE96_600_MODEL:-results/long-horizon/reward-model-scene96-600demos}"  # heads on 600 demonstrations
 ALLO96_MODEL="${INEST_ALLO96_MODEL:-results/long-horizon/reward-model-allo96}"  # encoder and heads on the scene camera
+THREE_FRAMES="--instant-confidence 1.0"  # the confirmation without its instant path: the default before 0.9
 RUNS=runs/long-horizon
 CONFIG=inest_agent_node/config/train.yaml
 
 declare -A METHODS=(
   [oracle]="--reward env --total-steps 300000"
   [oracle-state-obs]="--reward env --observation state --total-steps 300000"
-  [inest3-embedding]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --total-steps 300000"
-  [inest3-none]="--reward inest --model $MODEL --intrinsic none --stage-evidence embedding --total-steps 300000"
-  [inest3-embedding-state-obs]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --observation state --total-steps 300000"
-  [inest3-pixel-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000"
-  [inest3-pixel-embedding]="--reward inest --model $PIXEL_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
-  [inest3-pixel-classifier-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --tracker classifier --total-steps 300000"
-  [inest3-scene-none]="--reward inest --model $SCENE_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000"
-  [inest3-scene-embedding]="--reward inest --model $SCENE_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
-  [inest3-scene96-embedding]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000"
+  [inest3-embedding]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --total-steps 300000 $THREE_FRAMES"
+  [inest3-none]="--reward inest --model $MODEL --intrinsic none --stage-evidence embedding --total-steps 300000 $THREE_FRAMES"
+  [inest3-embedding-state-obs]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --observation state --total-steps 300000 $THREE_FRAMES"
+  [inest3-pixel-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
+  [inest3-pixel-embedding]="--reward inest --model $PIXEL_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
+  [inest3-pixel-classifier-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --tracker classifier --total-steps 300000 $THREE_FRAMES"
+  [inest3-scene-none]="--reward inest --model $SCENE_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
+  [inest3-scene-embedding]="--reward inest --model $SCENE_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
+  [inest3-scene96-embedding]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
   # the same head with the two-speed confirmation: one frame at P >= 0.9 confirms at once (docs/reward-signal.md, "The tracker's lag")
   [inest3-scene96-embedding-instant09]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --instant-confidence 0.9 --total-steps 300000"
-  [inest3-scene96-embedding-state-obs]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --observation state --total-steps 300000"
+  # the same with heads fitted on 600 demonstrations for 3000 iterations (docs/reward-signal.md, "The stage head's last frame")
+  [inest3-scene96-600demos-embedding-instant09]="--reward inest --model $SCENE96_600_MODEL --intrinsic embedding --stage-evidence pixels --instant-confidence 0.9 --total-steps 300000"
+  [inest3-scene96-600demos-none-instant09]="--reward inest --model $SCENE96_600_MODEL --intrinsic none --stage-evidence pixels --instant-confidence 0.9 --total-steps 300000"
+  [inest3-scene96-embedding-state-obs]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --observation state --total-steps 300000 $THREE_FRAMES"
   # one camera for all: the allocentric encoder (shaping) and its 96 px stage heads
-  [inest3-allo96-embedding]="--reward inest --model $ALLO96_MODEL --view allo --intrinsic embedding --stage-evidence pixels --total-steps 300000"
-  [inest3-allo96-none]="--reward inest --model $ALLO96_MODEL --view allo --intrinsic none --stage-evidence pixels --total-steps 300000"
+  [inest3-allo96-embedding]="--reward inest --model $ALLO96_MODEL --view allo --intrinsic embedding --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
+  [inest3-allo96-none]="--reward inest --model $ALLO96_MODEL --view allo --intrinsic none --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
   # the same at 1M steps, evaluated every 50k, updates on a second thread: the wall-clock check of
   # a 1M-step run (INEST_PARALLEL=1, one thread: the updates take one core, the environments the other)
-  [inest3-scene96-embedding-1m]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 1000000 --eval-every 50000 --overlap-updates"
+  [inest3-scene96-embedding-1m]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 1000000 --eval-every 50000 --overlap-updates $THREE_FRAMES"
   # the same with one gradient step per vector step (replay ratio 0.25, 250k updates in 1M steps): the
   # update no longer outlasts the environments' step, so a 1M-step run fits 90 minutes on 2 cores
-  [inest3-scene96-embedding-1m-rr025]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 1000000 --eval-every 50000 --overlap-updates --gradient-steps 1"
+  [inest3-scene96-embedding-1m-rr025]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 1000000 --eval-every 50000 --overlap-updates --gradient-steps 1 $THREE_FRAMES"
   # DIAGNOSTIC, never a method: the learned shaping with the stage and bonus of the true progress
-  [inest3-privileged-stage]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --stage-source privileged --total-steps 300000"
+  [inest3-privileged-stage]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --stage-source privileged --total-steps 300000 $THREE_FRAMES"
 )
 collect_only=false
 [ "${1:-}" = "--collect" ] && { collect_only=true; shift; }

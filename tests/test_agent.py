@@ -199,8 +199,8 @@ def test_command_line_flags_override_the_config_file(tmp_path):
     assert (config.sac.gradient_steps, config.sac.batch_size) == (1, 64)
     config, _ = parse_args(["--out", "x", "--config", str(path), "--confirm-steps", "1", "--stage-confidence", "0.8"])
     assert (config.learned_reward.confirm_steps, config.learned_reward.stage_confidence) == (1, 0.8)
-    config, _ = parse_args(["--out", "x", "--config", str(path), "--instant-confidence", "0.9"])
-    assert config.learned_reward.instant_confidence == 0.9
+    config, _ = parse_args(["--out", "x", "--config", str(path), "--instant-confidence", "0.95"])
+    assert config.learned_reward.instant_confidence == 0.95
     config, _ = parse_args(["--out", "x", "--config", str(path), "--reward", "env"])
     assert config.reward == "env" and config.intrinsic.mode == "none"
     path.write_text("num_envs: 2\n")  # a partial file: the model comes from the command line

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from inest_reward_node.model import ModelError, load_model
 from inest_reward_node.rewards import RewardScorer
-from inest_reward_node.stage_head import WEIGHTS_FILE, StageHead, StageHeadConfig, fit_stage_head
+from inest_reward_node.stage_head import WEIGHTS_FILE, StageHead, StageHeadConfig, boundary_frames, fit_stage_head
 from inest_reward_node.stages import RewardConfig
 
 
@@ -33,6 +33,27 @@ def test_the_head_reads_a_stage_only_the_pixels_show():
     np.testing.assert_allclose(at_least[:, 0], 1.0, rtol=1e-5)
     predicted = (at_least >= 0.5).sum(axis=1) - 1  # the highest stage it is confident of
     assert (predicted == held).mean() > 0.95
+
+
+def test_boundary_frames_are_the_two_either_side_of_a_change_within_an_episode():
+    first, second = np.array([0, 0, 0, 0, 0, 1, 1, 1, 1, 2]), np.array([0, 0, 0, 0, 0, 0])
+    near = boundary_frames([first, second, np.array([1, 1, 1, 1, 3])])
+    # 0 -> 1 at 5: frames 3-6; 1 -> 2 at 9, the last frame: 7-9; no change in the second episode;
+    # the third (offset 16) changes at its last frame: 16 + 2, 16 + 3, 16 + 4
+    assert near.tolist() == [3, 4, 5, 6, 7, 8, 9, 18, 19, 20]
+    assert boundary_frames([second]).size == 0
+
+
+def test_a_head_fitted_with_boundary_batches_still_reads_every_stage():
+    rng = np.random.default_rng(1)
+    stages = [np.sort(rng.integers(0, 4, size=64)) for _ in range(4)]  # ordered, like an episode
+    config = StageHeadConfig(image_size=48, iterations=60, batch_size=32, boundary_share=0.5)
+    head = fit_stage_head([marked_frames(s, rng) for s in stages], stages, 4, config)
+    held = rng.integers(0, 4, size=200)
+    predicted = (head.at_least(marked_frames(held, rng)) >= 0.5).sum(axis=1) - 1
+    assert (predicted == held).mean() > 0.95
+    with pytest.raises(ValueError, match=r"boundary_share must be in \[0, 1\)"):
+        StageHeadConfig(boundary_share=1.0)
 
 
 def test_heads_are_saved_with_the_model_and_used_only_when_asked(tiny_tcc_run, tmp_path):

@@ -301,6 +301,22 @@ INTEGER_OPTIONS = (
     "threads",
 )
 
+# --stage-head-OPTION: (StageHeadConfig field, type, help)
+STAGE_HEAD_OPTIONS: dict[str, tuple[str, type, str]] = {
+    "iterations": ("iterations", int, "training iterations of the pixel stage head (stage_head.py); 0: none"),
+    "demos": (
+        "max_demos",
+        int,
+        "training demonstrations the pixel stage head is fitted on, with the calibration's play",
+    ),
+    "boundary-share": (
+        "boundary_share",
+        float,
+        "share of the pixel stage head's batches drawn from frames next to a stage change",
+    ),
+    "image-size": ("image_size", int, "pixels a side the pixel stage head sees its frames at"),
+}
+
 
 def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespace]:
     defaults = PretrainConfig(dataset="")
@@ -346,18 +362,14 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         metavar="FILE",
         help="labelled clip files (inest-record-clips) the stage classifier is also fitted on",
     )
-    parser.add_argument(
-        "--stage-head-iterations",
-        type=int,
-        default=defaults.calibration.stage_head.iterations,
-        help="training iterations of the pixel stage head (stage_head.py); 0: none",
-    )
-    parser.add_argument(
-        "--stage-head-image-size",
-        type=int,
-        default=defaults.calibration.stage_head.image_size,
-        help="pixels a side the pixel stage head sees its frames at (default %(default)s)",
-    )
+    head_defaults = defaults.calibration.stage_head
+    for option, (setting, kind, text) in STAGE_HEAD_OPTIONS.items():
+        parser.add_argument(
+            f"--stage-head-{option}",
+            type=kind,
+            default=getattr(head_defaults, setting),
+            help=f"{text} (default %(default)s)",
+        )
     parser.add_argument(
         "--stage-head-view",
         choices=("ego", "allo"),
@@ -433,9 +445,11 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
             clips=tuple(args.clips),
             stage_head=dataclasses.replace(
                 defaults.calibration.stage_head,
-                iterations=args.stage_head_iterations,
-                image_size=args.stage_head_image_size,
                 view=args.stage_head_view,
+                **{
+                    setting: getattr(args, f"stage_head_{option.replace('-', '_')}")
+                    for option, (setting, _, _) in STAGE_HEAD_OPTIONS.items()
+                },
             ),
         ),
         **{name: getattr(args, name) for name in INTEGER_OPTIONS},

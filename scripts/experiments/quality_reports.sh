@@ -11,21 +11,24 @@ MODELS=results/long-horizon
 OUT=results/reward-signal
 PIXELS=(--scorer-option stage_evidence=pixels)
 PRIVILEGED=(--scorer-option stage_source=privileged)
+THREE_FRAMES=(--scorer-option instant_confidence=1.0)  # the confirmation without its instant path (the default before 0.9)
 
 declare -A REPORTS=(
-  [quality-default]="$MODELS/reward-model --schemes 3"
+  [quality-default]="$MODELS/reward-model --schemes 3 ${THREE_FRAMES[*]}"
   [quality-thesis]="$MODELS/reward-model --schemes 3 --scorer-option shaping=thesis --scorer-option tracker=threshold"
-  [quality-pixel]="$MODELS/reward-model-pixel --schemes 3 ${PIXELS[*]}"
-  [quality-scene]="$MODELS/reward-model-scene --schemes 3 ${PIXELS[*]}"
-  [quality-scene96]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]}"
-  [quality-scene96-confirm1]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=1"
-  [quality-scene96-confirm1-conf08]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=1 --scorer-option stage_confidence=0.8"
-  [quality-scene96-confirm2]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=2"
+  [quality-pixel]="$MODELS/reward-model-pixel --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
+  [quality-scene]="$MODELS/reward-model-scene --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
+  [quality-scene96]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
+  [quality-scene96-confirm1]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=1 ${THREE_FRAMES[*]}"
+  [quality-scene96-confirm1-conf08]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=1 --scorer-option stage_confidence=0.8 ${THREE_FRAMES[*]}"
+  [quality-scene96-confirm2]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=2 ${THREE_FRAMES[*]}"
   [quality-scene96-instant09]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option instant_confidence=0.9"
+  [quality-scene96-600demos]="$MODELS/reward-model-scene96-600demos --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
+  [quality-scene96-600demos-instant09]="$MODELS/reward-model-scene96-600demos --schemes 3 ${PIXELS[*]} --scorer-option instant_confidence=0.9"
   [quality-scene96-privileged]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} ${PRIVILEGED[*]}"
-  [allo-encoder/quality]="$OUT/allo-encoder/model --schemes 1 3 --scorer-option stage_evidence=embedding"
-  [allo-encoder/quality-pixels]="$OUT/allo-encoder/model --schemes 3 ${PIXELS[*]}"
-  [quality-allo96]="$MODELS/reward-model-allo96 --schemes 3 ${PIXELS[*]}"
+  [allo-encoder/quality]="$OUT/allo-encoder/model --schemes 1 3 --scorer-option stage_evidence=embedding ${THREE_FRAMES[*]}"
+  [allo-encoder/quality-pixels]="$OUT/allo-encoder/model --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
+  [quality-allo96]="$MODELS/reward-model-allo96 --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
   [quality-allo96-privileged]="$MODELS/reward-model-allo96 --schemes 3 ${PIXELS[*]} ${PRIVILEGED[*]}"
 )
 selected=("$@")

@@ -13,8 +13,8 @@ OUT=results/reward-signal/tracker-selection
 [ -f runs/demos-select/metadata.json ] \
   || "$BIN/inest-collect-demos" --out runs/demos-select --episodes 250 --valid-fraction 0.4 --seed 5000000 --workers 2
 declare -A SETTINGS=(
-  [default]=""
-  [confirm1-conf08]="--scorer-option confirm_steps=1 --scorer-option stage_confidence=0.8"
+  [default]="--scorer-option instant_confidence=1.0"  # three frames: the default before instant 0.9
+  [confirm1-conf08]="--scorer-option confirm_steps=1 --scorer-option stage_confidence=0.8 --scorer-option instant_confidence=1.0"
   [instant08]="--scorer-option instant_confidence=0.8"
   [instant09]="--scorer-option instant_confidence=0.9"
   [instant095]="--scorer-option instant_confidence=0.95"

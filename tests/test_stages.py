@@ -203,15 +203,16 @@ def test_the_confirmed_tracker_confirms_clear_evidence_at_once_and_weak_evidence
     # before the threshold test has held, even clear evidence confirms nothing
     tracker = ConfirmedTracker([-0.02, -0.02], hold_steps=3, confidence=0.5, window=5, instant=0.9)
     assert [tracker.step(*MOVED_ON, clear) for _ in range(4)] == [0] * 4
-    scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=RewardConfig(instant_confidence=0.9))
-    assert scorer.new_tracker().instant == 0.9
+    assert RewardScorer(line_model(hold_steps=2), scheme=3).new_tracker().instant == 0.9  # the default
 
 
 def test_the_reopening_trackers_in_the_scorer():
-    # reopening completes once the threshold test holds twice; confirmed then waits for the classifier
+    # reopening completes once the threshold test holds twice; confirmed then waits for the classifier's
+    # streak (its instant path off; test_the_confirmed_tracker_confirms_clear_evidence_at_once... covers it)
     expected = {"reopening": [0, 1, 1, 1, 1, 1, 0], "confirmed": [0, 0, 1, 1, 1, 1, 0]}
     for tracker, stages in expected.items():
-        scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=RewardConfig("progress", tracker))
+        config = RewardConfig("progress", tracker, instant_confidence=1.0)
+        scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=config)
         steps = run(scorer, [0.0, 0.0, 0.0, 3.0, 3.0, -6.0, -6.0])  # x = 3: past goal 0; x = -6: back before it
         assert [s.completed[0] for s in steps] == stages, tracker
 

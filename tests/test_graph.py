@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
-from inest_interfaces.msg import EpisodeStatus
+from inest_interfaces.msg import Action, EpisodeStatus
+from inest_interfaces.srv import ResetEpisode
 from inest_reward_node.data import load_demos
 from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.model import load_model
@@ -167,6 +168,37 @@ def test_the_launcher_runs_the_whole_graph_and_writes_the_reward_trace(tiny_mode
     rewards = recorded["/sim0/reward"]
     assert len(rewards) >= 200 and {r.num_subtasks for r in rewards} == {3} and max(r.subtask for r in rewards) <= 3
     assert [r.total for r in rewards] == [total.data for total in recorded["/sim0/reward/total"]]
+
+
+def test_a_reset_asked_again_before_a_step_answers_with_the_same_episode(graph):
+    graph.start("sim0", *sim_node_args("sim0"))
+    rclpy.init(domain_id=int(graph.env["ROS_DOMAIN_ID"]))
+    try:
+        node = rclpy.create_node("resetter")
+        client = node.create_client(ResetEpisode, "sim0/reset")
+        statuses = []
+        node.create_subscription(EpisodeStatus, "sim0/episode_status", statuses.append, 50)
+        action_pub = node.create_publisher(Action, "sim0/action", 10)
+        assert client.wait_for_service(timeout_sec=60)
+
+        def reset(seed: int = -1) -> ResetEpisode.Response:
+            future = client.call_async(ResetEpisode.Request(seed=seed))
+            rclpy.spin_until_future_complete(node, future, timeout_sec=30)
+            return future.result()
+
+        first, again = reset(), reset()
+        assert (again.header.stamp, again.message, again.state) == (first.header.stamp, first.message, first.state)
+        action = Action(values=[0.5, 0.0, 0.0])
+        action.header.stamp = first.header.stamp
+        deadline = time.monotonic() + 30
+        while not any(s.action_stamp == first.header.stamp for s in statuses) and time.monotonic() < deadline:
+            action_pub.publish(action)
+            rclpy.spin_once(node, timeout_sec=0.2)
+        after_a_step, seeded = reset(), reset(seed=123)
+    finally:
+        rclpy.shutdown()
+    assert after_a_step.message != first.message  # a step taken: a new episode
+    assert seeded.message.endswith("seed 123")  # another seed: a new episode even before a step
 
 
 def test_a_realtime_simulator_steps_at_8_hz_holding_the_last_action(graph):

@@ -9,7 +9,8 @@ serves `reset` (inest_interfaces/ResetEpisode).
 Modes:
 - lockstep (training): one step per action, applied only if the action's stamp is the current
   observation's stamp. An action answering the previous observation again (the agent timed out
-  waiting) re-publishes that step's outputs instead of stepping twice.
+  waiting) re-publishes that step's outputs instead of stepping twice; a reset before the
+  episode's first step (a request asked again) answers with that episode instead of starting another.
 - realtime (watching, teleoperation, a live policy): steps at the control rate holding the last
   action, starting a new episode after each truncation.
 """
@@ -109,6 +110,7 @@ class SimNode(Node):
             image.header.stamp, image.header.frame_id = stamp, f"{view}_camera"
             image.data = frame.tobytes()
             outputs.append((publisher, image))
+        self.state = state
         state_msg = State(values=state.tolist())
         state_msg.header.stamp, state_msg.header.frame_id = stamp, "world"
         status = EpisodeStatus(
@@ -161,7 +163,11 @@ class SimNode(Node):
             self.step(self.held_action, 0)
 
     def on_reset(self, request: ResetEpisode.Request, response: ResetEpisode.Response) -> ResetEpisode.Response:
-        state = self.start_episode(request.seed)
+        # a reset before the episode's first step answers with that episode: a request asked again
+        # (its answer was slow, or its first server died) cannot put the simulator an episode ahead
+        # of the caller, who acts on the stamp of the first answer it gets
+        fresh = self.env.elapsed_steps == 0 and not self.done and request.seed in (-1, self.seed)
+        state = self.state if fresh else self.start_episode(request.seed)
         response.success = True
         response.message = f"episode {self.episode}, seed {self.seed}"
         response.header.stamp, response.header.frame_id = ns_stamp(self.time_ns), "world"

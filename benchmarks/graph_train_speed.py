@@ -5,11 +5,13 @@ environments, with 1 and with 2 torch threads, and with 1 thread and its updates
 the step on a second thread (`overlap_updates`); the ratio is taken to the fastest. Graph: 4
 `inest-sim-node` processes (lockstep) and one `inest-reward-node` (same model, same bonus),
 the learner in this process on a GraphVecEnv, its updates overlapping the simulators' step
-(the agent node's default). Rounds alternate between the runs so machine noise hits all alike.
+(the agent node's default), simulators and reward node TRAINING_NICENESS steps nicer than it
+(inest-launch's default while the agent trains). Rounds alternate between the runs so machine
+noise hits all alike.
 Target (issue 5): graph >= 0.9x in-process. Prints one JSON object.
-`graph_train_speed.py [MODEL_FOLDER] [--no-overlap] [--graph-threads=N]` (default model
-runs/pretrain-main/model; --no-overlap: updates after each step, as in process; the nodes'
-output goes to runs/benchmarks/graph_train_speed/).
+`graph_train_speed.py [MODEL_FOLDER] [--no-overlap] [--graph-threads=N] [--nice=N]` (default
+model runs/pretrain-main/model; --no-overlap: updates after each step, as in process; --nice=0:
+every node at the agent's priority; the nodes' output goes to runs/benchmarks/graph_train_speed/).
 """
 
 from __future__ import annotations
@@ -26,17 +28,20 @@ import torch
 from inest_agent_node.graph_env import GraphVecEnv
 from inest_agent_node.train import Trainer
 from inest_bringup.launcher import graph_environment
+from inest_bringup.supervisor import TRAINING_NICENESS, niced
 from inest_reward_node.intrinsic import IntrinsicConfig
 from train_speed import RANDOM_STEPS, ROUND_STEPS, ROUNDS, WARM_UP_STEPS, median_speeds, paired_ratio, trainer_speeds
 
 from inest_agent_node.config import SacConfig, TrainConfig
 
 SIMS = 4
+EGO = ["-p", "cameras:=[ego]"]
 LOGS = "runs/benchmarks/graph_train_speed"  # the nodes' output
 OVERLAP = "--no-overlap" not in sys.argv  # the agent node's default: updates overlap the step
 # torch threads of the graph's learner: with updates overlapping the step, one thread leaves the
 # other core to the simulators and the reward node (--graph-threads=2 to match in-process)
 GRAPH_THREADS = int(next((a.split("=")[1] for a in sys.argv if a.startswith("--graph-threads=")), "1"))
+NICENESS = int(next((a.split("=")[1] for a in sys.argv if a.startswith("--nice=")), str(TRAINING_NICENESS)))
 
 
 def main() -> None:
@@ -54,7 +59,7 @@ def main() -> None:
         os.environ.update(env)  # this process's own participant joins the same private graph
         processes = [
             subprocess.Popen(
-                [bin_dir / "inest-sim-node", "--ros-args", "-r", f"__ns:=/{namespace}", "-p", "cameras:=[ego]"],
+                niced([str(bin_dir / "inest-sim-node"), "--ros-args", "-r", f"__ns:=/{namespace}", *EGO], NICENESS),
                 env=env,
                 stdout=open(f"{LOGS}/{namespace}.log", "w"),  # noqa: SIM115
                 stderr=subprocess.STDOUT,
@@ -63,14 +68,17 @@ def main() -> None:
         ]
         processes.append(
             subprocess.Popen(
-                [
-                    bin_dir / "inest-reward-node",
-                    "--ros-args",
-                    "-p",
-                    f"model:={model}",
-                    "-p",
-                    f"streams:=[{', '.join(namespaces)}]",
-                ],
+                niced(
+                    [
+                        str(bin_dir / "inest-reward-node"),
+                        "--ros-args",
+                        "-p",
+                        f"model:={model}",
+                        "-p",
+                        f"streams:=[{', '.join(namespaces)}]",
+                    ],
+                    NICENESS,
+                ),
                 env=env,
                 stdout=open(f"{LOGS}/reward.log", "w"),  # noqa: SIM115
                 stderr=subprocess.STDOUT,
@@ -133,6 +141,7 @@ def main() -> None:
                 "target_ratio": 0.9,
                 "overlap_updates": OVERLAP,
                 "graph_learner_threads": GRAPH_THREADS,
+                "environment_niceness": NICENESS,
                 "settings": f"default SAC config, {SIMS} environments = simulator processes, INEST-3 + embedding bonus",
             }
         )

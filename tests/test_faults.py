@@ -23,7 +23,7 @@ import yaml
 from inest_agent_node.train import Trainer
 from inest_bringup.launcher import graph_environment
 from inest_bringup.monitor import GraphMonitor
-from inest_bringup.supervisor import Outcome, RespawnPolicy, Supervisor
+from inest_bringup.supervisor import TRAINING_NICENESS, Outcome, RespawnPolicy, Supervisor
 from inest_interfaces.msg import Reward
 from inest_reward_node.serving import StreamScorer
 from rosgraph import BIN, fresh_domain
@@ -173,7 +173,8 @@ def test_the_ros_launch_file_respawns_simulators_and_reward_node_as_inest_launch
     spec = importlib.util.spec_from_file_location("inest_launch_file", path)
     launch_file = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(launch_file)
-    arguments = {"sims": "2", "params_file": "inest.params.yaml", "mode": "lockstep", "model": "", "agent": "true"}
+    arguments = {"sims": "2", "params_file": "inest.params.yaml", "mode": "lockstep", "model": "", "agent": "true",
+                 "nice": str(TRAINING_NICENESS)}  # fmt: skip
     nodes = launch_file.graph(arguments | {"out": "runs/graph/agent"})
     executables = [node.settings["executable"] for node in nodes]
     assert executables == ["inest-sim-node", "inest-sim-node", "inest-reward-node", "inest-agent-node"]
@@ -183,6 +184,10 @@ def test_the_ros_launch_file_respawns_simulators_and_reward_node_as_inest_launch
         assert respawn == {"respawn": True, "respawn_delay": policy.delay, "respawn_max_retries": policy.max_respawns}
     assert "respawn" not in nodes[3].settings  # a restarted agent must resume: not done behind the user's back
     assert [node.settings["namespace"] for node in nodes[:2]] == ["sim0", "sim1"]
+    # while the agent trains, the environment side runs nicer than it, as under inest-launch
+    assert [node.settings.get("prefix") for node in nodes] == [f"nice -n {TRAINING_NICENESS}"] * 3 + [None]
+    watching = launch_file.graph(arguments | {"agent": "false", "out": "runs/graph/agent"})
+    assert [node.settings.get("prefix") for node in watching] == [None] * 3
 
 
 def launch(tmp_path: Path, tiny_model: Path, *extra: str) -> subprocess.Popen:
@@ -216,6 +221,8 @@ def test_the_launcher_respawns_a_killed_simulator_and_ctrl_c_checkpoints_the_age
     env = graph_environment(domain, tmp_path / "ros")
     assert count_steps(env, 150, timeout=180) >= 150
     pid = int(re.search(r"started sim0 \(pid (\d+)\)", (tmp_path / "launcher.log").read_text())[1])
+    # the simulator runs nicer than the agent, whose update sets the pace of training
+    assert os.getpriority(os.PRIO_PROCESS, pid) == min(19, os.getpriority(os.PRIO_PROCESS, 0) + TRAINING_NICENESS)
     os.kill(pid, signal.SIGKILL)
     wait_for_line(tmp_path / "launcher.log", "restarted sim0")
     assert count_steps(env, 100, timeout=180) >= 100  # the agent reset the new simulator and trains on

@@ -5,7 +5,8 @@ All nodes read one params file (config/inest.params.yaml by default). Discovery 
 machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless `--discovery subnet`, and uses the
 fast-discovery Fast DDS profile shipped next to the params file. The run folder gets each
 node's output in logs/, ROS's own logs in logs/ros/, the agent's run in agent/ and, at the end,
-reward_trace.png; `--record FILE` adds the recorder (inest-record) to the graph. A node that
+reward_trace.png; `--record FILE` adds the recorder (inest-record) to the graph. While the agent
+trains, simulators and reward node run `--nice` steps nicer than it (TRAINING_NICENESS). A node that
 exits is restarted (supervisor.py: `--respawn` times in a row, with back-off; the agent with
 resume:=true); a node that keeps dying or refuses its configuration stops the graph. Ctrl-C or
 SIGTERM (or the agent finishing) stops every child, the agent first (it saves a checkpoint);
@@ -29,7 +30,7 @@ from inest_agent_node.train import RESULTS_FILE
 from inest_reward_node.runs import CONFIG_FILE
 
 from .recording import RecordingError, check_target
-from .supervisor import RespawnPolicy, Supervisor
+from .supervisor import TRAINING_NICENESS, RespawnPolicy, Supervisor, niced
 
 CONFIG_DIR_NAME = "config"
 PARAMS_FILE = "inest.params.yaml"
@@ -87,17 +88,17 @@ def node_commands(args: argparse.Namespace, run_dir: Path) -> list[tuple[str, li
             raise ValueError(f"--param {setting!r}: expected NODE:NAME:=VALUE with NODE one of {NODES}")
         extra[node] += ["-p", assignment]
     params = ["--ros-args", "--params-file", str(args.params)]
+    niceness = 0 if args.no_agent else args.nice
     commands = []
     for index, namespace in enumerate(namespaces):
         clock = [] if index == 0 else ["-p", "publish_clock:=false"]
         if args.realtime:
             clock += ["-p", "mode:=realtime"]
-        commands.append(
-            (namespace, [executable("inest-sim-node"), *params, "-r", f"__ns:=/{namespace}", *clock, *extra["sim"]])
-        )
+        simulator = [executable("inest-sim-node"), *params, "-r", f"__ns:=/{namespace}", *clock, *extra["sim"]]
+        commands.append((namespace, niced(simulator, niceness)))
     model = ["-p", f"model:={args.model}"] if args.model else []
     reward = ["-p", f"streams:={listed}", *model]
-    commands.append(("reward", [executable("inest-reward-node"), *params, *reward, *extra["reward"]]))
+    commands.append(("reward", niced([executable("inest-reward-node"), *params, *reward, *extra["reward"]], niceness)))
     if not args.no_agent:
         agent = ["-p", f"namespaces:={listed}", "-p", f"out:={run_dir / 'agent'}", *model]
         if args.steps is not None:
@@ -161,11 +162,19 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--record", type=Path, metavar="FILE", help="record the reward topics to this MCAP file")
     parser.add_argument("--respawn", type=int, default=3, help="restarts in a row of a node that exits")
     parser.add_argument("--respawn-delay", type=float, default=1.0, help="seconds before a restart (doubles)")
+    parser.add_argument(
+        "--nice",
+        type=int,
+        default=TRAINING_NICENESS,
+        help="while the agent trains, simulators and reward node run this much nicer (0: same priority)",
+    )
     args = parser.parse_args(argv)
     if args.sims < 1:
         parser.error("--sims must be at least 1")
     if args.respawn < 0 or args.respawn_delay < 0:
         parser.error("--respawn and --respawn-delay must be >= 0")
+    if not 0 <= args.nice <= 19:
+        parser.error(f"--nice must be between 0 and 19, got {args.nice}")
     if not args.params.is_file():
         parser.error(f"no params file at {args.params}")
     if args.record:

@@ -1,4 +1,5 @@
-"""Keeping the graph's node processes alive (no ROS imports): the launcher's respawn logic.
+"""Keeping the graph's node processes alive (no ROS imports): the launcher's respawn logic, and
+the priority the environment side runs at while the agent trains.
 
 Like `respawn`/`respawn_delay` of ROS launch, with a bound: a node that exits is started again
 after `delay` seconds, doubled for each further restart in a row; one that stays up for
@@ -18,6 +19,15 @@ from pathlib import Path
 
 CONFIG_ERROR = 2  # the nodes' exit code for a bad parameter or run file
 FINISHES = "agent"  # the node whose exit 0 means the run is over
+# While the agent trains, the simulators and the reward node run this much nicer than it: the
+# agent's update, which sets the pace of training over the graph, then does not wait behind them
+# for a core (measured in docs/performance.md). Niceness only matters when every core is busy.
+TRAINING_NICENESS = 10
+
+
+def niced(argv: list[str], niceness: int) -> list[str]:
+    """`argv` run `niceness` steps nicer than this process (coreutils `nice`, like a ROS launch prefix)."""
+    return ["nice", "-n", str(niceness), *argv] if niceness else argv
 
 
 @dataclass(frozen=True)

@@ -5,13 +5,14 @@ namespaces sim0, sim1, ..., one reward node scoring all of them, one agent learn
 `agent:=false` starts simulators and reward node only (e.g. with `mode:=realtime` to watch).
 Simulators and reward node respawn as under `inest-launch` (RESPAWN: supervisor.RespawnPolicy's
 retries and first delay; ROS launch keeps the delay constant where inest-launch doubles it); the
-agent does not (a restarted agent needs resume:=true: start it again with that).
+agent does not (a restarted agent needs resume:=true: start it again with that). While the agent
+trains, simulators and reward node run `nice:=10` steps nicer, as under `inest-launch`.
 """
 
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
-from inest_bringup.supervisor import RespawnPolicy
+from inest_bringup.supervisor import TRAINING_NICENESS, RespawnPolicy
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction, SetEnvironmentVariable
 from launch.substitutions import LaunchConfiguration
@@ -29,6 +30,9 @@ def graph(context):
     sims = int(value("sims"))
     namespaces = [f"sim{index}" for index in range(sims)]
     params = value("params_file")
+    training = value("agent").lower() == "true"
+    niceness = int(value("nice")) if training else 0
+    prefix = {"prefix": f"nice -n {niceness}"} if niceness else {}
     nodes = [
         Node(
             package="inest_sim_node",
@@ -37,6 +41,7 @@ def graph(context):
             parameters=[params, {"publish_clock": index == 0, "mode": value("mode")}],
             output="screen",
             **RESPAWN,
+            **prefix,
         )
         for index, namespace in enumerate(namespaces)
     ]
@@ -50,9 +55,10 @@ def graph(context):
             parameters=[params, reward],
             output="screen",
             **RESPAWN,
+            **prefix,
         )
     )
-    if value("agent").lower() == "true":
+    if training:
         agent = {"namespaces": namespaces, "out": value("out")}
         nodes.append(
             Node(package="inest_agent_node", executable="inest-agent-node", parameters=[params, agent], output="screen")
@@ -71,6 +77,11 @@ def generate_launch_description() -> LaunchDescription:
             DeclareLaunchArgument("out", default_value="runs/graph/agent", description="agent run folder"),
             DeclareLaunchArgument("mode", default_value="lockstep", description="simulators: lockstep | realtime"),
             DeclareLaunchArgument("agent", default_value="true", description="start the agent"),
+            DeclareLaunchArgument(
+                "nice",
+                default_value=str(TRAINING_NICENESS),
+                description="while the agent trains, simulators and reward node run this much nicer (0: off)",
+            ),
             SetEnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE", str(SHARE / "config" / "fastdds_localhost.xml")),
             OpaqueFunction(function=graph),
         ]

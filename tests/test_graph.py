@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
-from inest_interfaces.msg import Action, EpisodeStatus
+from inest_interfaces.msg import Action, EpisodeStatus, State
 from inest_interfaces.srv import ResetEpisode
 from inest_reward_node.data import load_demos
 from inest_reward_node.intrinsic import IntrinsicConfig
@@ -170,16 +170,20 @@ def test_the_launcher_runs_the_whole_graph_and_writes_the_reward_trace(tiny_mode
     assert [r.total for r in rewards] == [total.data for total in recorded["/sim0/reward/total"]]
 
 
-def test_a_reset_asked_again_before_a_step_answers_with_the_same_episode(graph):
+def test_a_reset_asked_again_before_a_step_answers_with_the_same_episode_and_a_step_carries_its_state(graph):
     graph.start("sim0", *sim_node_args("sim0"))
     rclpy.init(domain_id=int(graph.env["ROS_DOMAIN_ID"]))
     try:
         node = rclpy.create_node("resetter")
         client = node.create_client(ResetEpisode, "sim0/reset")
-        statuses = []
+        statuses, states = [], []
         node.create_subscription(EpisodeStatus, "sim0/episode_status", statuses.append, 50)
+        node.create_subscription(State, "sim0/state", states.append, 50)
         action_pub = node.create_publisher(Action, "sim0/action", 10)
         assert client.wait_for_service(timeout_sec=60)
+        while node.count_publishers("sim0/state") < 1:
+            rclpy.spin_once(node, timeout_sec=0.2)
+        time.sleep(1.0)  # the simulator sees this subscriber too: it publishes `state` only while one listens
 
         def reset(seed: int = -1) -> ResetEpisode.Response:
             future = client.call_async(ResetEpisode.Request(seed=seed))
@@ -194,9 +198,16 @@ def test_a_reset_asked_again_before_a_step_answers_with_the_same_episode(graph):
         while not any(s.action_stamp == first.header.stamp for s in statuses) and time.monotonic() < deadline:
             action_pub.publish(action)
             rclpy.spin_once(node, timeout_sec=0.2)
+        stepped = next(status for status in statuses if status.action_stamp == first.header.stamp)
+        while not any(state.header.stamp == stepped.header.stamp for state in states) and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.2)
         after_a_step, seeded = reset(), reset(seed=123)
     finally:
         rclpy.shutdown()
+    # the step's new state rides on its status, and on `state` for whoever listens, stamped alike
+    assert len(stepped.state) == len(first.state) and list(stepped.state) != list(first.state)
+    published = [list(state.values) for state in states if state.header.stamp == stepped.header.stamp]
+    assert published and all(values == list(stepped.state) for values in published)  # repeats re-publish it
     assert after_a_step.message != first.message  # a step taken: a new episode
     assert seeded.message.endswith("seed 123")  # another seed: a new episode even before a step
 

@@ -1,8 +1,8 @@
 """A stable-baselines3 VecEnv whose environments are simulators (and a reward node) on ROS 2 topics.
 
 Environment i lives under namespace `namespaces[i]`: it publishes `action`, and waits for the
-`episode_status` answering that action, then the `state` and `reward` stamped like it (see
-pairing.py). Resets go through the simulator's `reset` and the reward node's `reset_reward`
+`episode_status` answering that action (which carries the new state), then the `reward` stamped
+like it (see pairing.py). Resets go through the simulator's `reset` and the reward node's `reset_reward`
 services. When something stays silent for `timeout` seconds, it logs which topic of which
 simulator, re-sends the action (a lockstep simulator re-publishes a step it already took) and
 keeps waiting: a restarted reward node picks the run up where it stopped. A restarted simulator
@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 from inest_common.rosutil import namespaced, new_executor, ns_stamp, stamp_ns
-from inest_interfaces.msg import Action, EpisodeStatus, Reward, State
+from inest_interfaces.msg import Action, EpisodeStatus, Reward
 from inest_interfaces.srv import ResetEpisode
 from inest_sim_node.scoring import NUM_BLOCKS
 from rclpy.node import Node
@@ -31,7 +31,7 @@ from inest_sim_node import SweepToTopEnv
 
 from .envs import BONUS, INTRINSIC, LEARNED_STAGE, SHAPING, TRUE_PROGRESS, UpdateThread
 from .learners import BROKEN_STEP
-from .pairing import REWARD, STATE, STATUS, StepMailbox
+from .pairing import REWARD, STATUS, StepMailbox
 
 
 class GraphVecEnv(VecEnv):
@@ -51,7 +51,6 @@ class GraphVecEnv(VecEnv):
                     EpisodeStatus, namespaced(namespace, "episode_status"), lambda m, i=index: self.on_status(i, m), qos
                 )
             )
-            node.create_subscription(State, namespaced(namespace, "state"), lambda m, i=index: self.on_state(i, m), qos)
             self.sim_resets.append(node.create_client(ResetEpisode, namespaced(namespace, "reset")))
             if learned_reward:
                 node.create_subscription(
@@ -69,9 +68,6 @@ class GraphVecEnv(VecEnv):
     # --- message intake ------------------------------------------------------------
     def on_status(self, index: int, msg: EpisodeStatus) -> None:
         self.mailboxes[index].put_status(stamp_ns(msg.action_stamp), stamp_ns(msg.header.stamp), msg)
-
-    def on_state(self, index: int, msg: State) -> None:
-        self.mailboxes[index].put(STATE, stamp_ns(msg.header.stamp), msg)
 
     def on_reward(self, index: int, msg: Reward) -> None:
         self.mailboxes[index].put(REWARD, stamp_ns(msg.header.stamp), msg)
@@ -212,7 +208,7 @@ class GraphVecEnv(VecEnv):
                 continue
             new_stamp, messages = results[index]
             status = messages[STATUS]
-            observation = np.asarray(messages[STATE].values, dtype=np.float32)
+            observation = np.asarray(status.state, dtype=np.float32)
             reward = messages.get(REWARD, Reward())
             rewards[index] = reward.total if self.learned_reward else status.env_reward
             info = self.step_info(status, reward)

@@ -1,8 +1,8 @@
 """Pairing a lockstep step's messages by stamp, never by arrival order (no ROS imports).
 
 After the agent acts on the observation stamped S, the simulator's episode status that
-answers it carries `action_stamp == S` and the new observation's stamp S'; the state and the
-reward for that step both carry S'. Messages for other stamps (late repeats, the reward of a
+answers it carries `action_stamp == S`, the new observation's stamp S' and the new state; the
+reward for that step carries S'. Messages for other stamps (late repeats, the reward of a
 reset frame) never satisfy a step, and are dropped once a newer step has completed.
 """
 
@@ -10,14 +10,14 @@ from __future__ import annotations
 
 from typing import Any
 
-STATUS, STATE, REWARD = "episode_status", "state", "reward"
+STATUS, REWARD = "episode_status", "reward"
 
 
 class StepMailbox:
     """One environment's messages, by stamp, until the step that needs them takes them."""
 
     def __init__(self, needs_reward: bool = True) -> None:
-        self.stamped = (STATE, REWARD) if needs_reward else (STATE,)
+        self.stamped = (REWARD,) if needs_reward else ()
         self.statuses: dict[int, tuple[int, Any]] = {}  # action stamp -> (new stamp, status)
         self.boxes: dict[str, dict[int, Any]] = {topic: {} for topic in self.stamped}
 

@@ -2,9 +2,9 @@
 
 Publishes, all stamped with simulated time (one control period per step and per reset, so
 every observation has its own stamp): `camera/<view>/image_raw` (sensor_msgs/Image, rgb8) for
-each view in `cameras`, `state` (inest_interfaces/State), `episode_status`
-(inest_interfaces/EpisodeStatus) and `/clock`. Subscribes to `action` (inest_interfaces/Action);
-serves `reset` (inest_interfaces/ResetEpisode).
+each view in `cameras`, `episode_status` (inest_interfaces/EpisodeStatus, with the new state),
+`state` (inest_interfaces/State, while someone subscribes) and `/clock`. Subscribes to
+`action` (inest_interfaces/Action); serves `reset` (inest_interfaces/ResetEpisode).
 
 Modes:
 - lockstep (training): one step per action, applied only if the action's stamp is the current
@@ -111,8 +111,7 @@ class SimNode(Node):
             image.data = frame.tobytes()
             outputs.append((publisher, image))
         self.state = state
-        state_msg = State(values=state.tolist())
-        state_msg.header.stamp, state_msg.header.frame_id = stamp, "world"
+        values = state.tolist()
         status = EpisodeStatus(
             action_stamp=ns_stamp(action_stamp),
             episode=self.episode,
@@ -123,10 +122,15 @@ class SimNode(Node):
             env_reward=self.env_reward,
             terminated=False,
             truncated=self.done,
+            state=values,
         )
         status.header.stamp, status.header.frame_id = stamp, "world"
-        # state and status before the images: whoever waits on the reward has them already
-        outputs = [(self.state_pub, state_msg), (self.status_pub, status), *outputs]
+        # status before the images: whoever waits on the reward has it already
+        outputs = [(self.status_pub, status), *outputs]
+        if self.state_pub.get_subscription_count():  # only while someone listens: the agent reads the status
+            state_msg = State(values=values)
+            state_msg.header.stamp, state_msg.header.frame_id = stamp, "world"
+            outputs.insert(0, (self.state_pub, state_msg))
         if self.clock_pub is not None:
             outputs.append((self.clock_pub, Clock(clock=stamp)))
         self.last_outputs = outputs

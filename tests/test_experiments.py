@@ -172,6 +172,17 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     assert "| oracle | 2 of 3 |" in report and "| holdr | 0 of 3 | | not finished |" in report
     assert main(["report", str(tmp_path / "nothing")]) == 2
     assert capsys.readouterr().err.count("\n") == 1
+    # the export: report and runs' small files, a training run's curve so far, no checkpoints
+    export = tmp_path.with_name(f"{tmp_path.name}-export")
+    (tmp_path / "oracle" / "seed0" / "checkpoint" / "replay_buffer.pkl").write_bytes(b"large")
+    assert main(["report", str(tmp_path), "--export", str(export)]) == 0
+    assert (export / "report.md").read_text() == (tmp_path / "report.md").read_text()
+    assert (export / "summary.json").exists() and (export / "learning_curves.png").exists()
+    finished = export / "oracle" / "seed0"
+    assert (finished / "results.json").exists() and not (finished / "checkpoint").exists()
+    assert json.loads((export / "oracle" / "seed2" / "history.json").read_text()) == curve[:1]
+    assert main(["report", str(tmp_path), "--export", str(tmp_path)]) == 2
+    assert capsys.readouterr().err.startswith("inest-experiments: --export")
 
 
 def test_report_scores_each_learned_reward_on_the_grids_demonstrations(tmp_path, capsys, tiny_model, tiny_demos):

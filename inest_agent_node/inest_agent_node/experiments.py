@@ -19,7 +19,8 @@ report is written.
 95 % bootstrap interval over seeds, success rate, 0/1/2/3-block shares; per run; cells not
 finished), OUT/summary.json and OUT/learning_curves.png (summary.py); with the grid's `demos`,
 also every method's reward error against the environment's reward on those held-out
-demonstrations (grid_quality.py).
+demonstrations (grid_quality.py). `--export DIR` then copies the report and every run's small
+files, without checkpoints, into DIR: a results folder to commit or share.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import ctypes
 import io
 import json
 import shlex
+import shutil
 import signal
 import subprocess
 import sys
@@ -46,12 +48,17 @@ from inest_common.progress import track
 from inest_reward_node.runs import CONFIG_FILE
 
 from .config import GridConfig
-from .grid_quality import quality_table
+from .grid_quality import QUALITY_DIR, quality_table
 from .summary import summarise, write_summary
 from .train import RESULTS_FILE, parse_args
 
 GRID_FILE = "grid.json"
 REPORT_FILE = "report.md"
+# what `report --export` copies: the report's files, a run's own files, and while a run still
+# trains its learning curve and reward diagnostics so far (from its checkpoint)
+REPORT_FILES = (REPORT_FILE, "summary.json", "learning_curves.png", GRID_FILE)
+RUN_FILES = ("config.json", RESULTS_FILE, "learning_curve.png", "coverage.png")
+TRAINING_FILES = ("history.json", "diagnostics.json")
 EXECUTORS = ("local", "ray")
 PR_SET_PDEATHSIG = 1  # prctl(2)
 LIBC = ctypes.CDLL(None) if sys.platform == "linux" else None  # loaded here: the child only calls it
@@ -312,6 +319,30 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
     return out / REPORT_FILE
 
 
+def export_results(out: Path, target: Path) -> None:
+    """Copy OUT's report, every run's small files and each method's reward-quality report into
+    `target` (checkpoints, replay buffers and TensorBoard logs stay behind)."""
+    if target.resolve() == out.resolve():
+        raise ValueError(f"--export {target} is the grid's own folder")
+    target.mkdir(parents=True, exist_ok=True)
+    for name in REPORT_FILES:
+        if (out / name).is_file():
+            shutil.copy2(out / name, target / name)
+    for run in sorted(path.parent for path in out.glob(f"*/*/{CONFIG_FILE}")):
+        copy = target / run.relative_to(out)
+        copy.mkdir(parents=True, exist_ok=True)
+        finished = (run / RESULTS_FILE).is_file()
+        for name in RUN_FILES:
+            if (run / name).is_file():
+                shutil.copy2(run / name, copy / name)
+        for name in TRAINING_FILES:  # a finished run's results hold them; an old copy would mislead
+            (copy / name).unlink(missing_ok=True)
+            if not finished and (run / "checkpoint" / name).is_file():
+                shutil.copy2(run / "checkpoint" / name, copy / name)
+    for quality in out.glob(f"*/{QUALITY_DIR}"):
+        shutil.copytree(quality, target / quality.relative_to(out), dirs_exist_ok=True)
+
+
 def positive(text: str) -> int:
     value = int(text)
     if value < 1:
@@ -339,14 +370,16 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--address", help="the Ray cluster's address (ray start --head prints it), or local")
     report = commands.add_parser("report", help="write OUT/report.md, summary.json and learning_curves.png")
     report.add_argument("grid", type=Path, help="grid YAML file, or the grid's OUT folder")
+    report.add_argument("--export", type=Path, metavar="DIR", help="then copy the results, without checkpoints, here")
     args = parser.parse_args(argv)
     try:
         if args.command == "report":
-            if args.grid.is_dir():
-                print(f"wrote {write_report(args.grid, None)}")
-            else:
-                grid = GridConfig.from_yaml(args.grid)
-                print(f"wrote {write_report(Path(grid.out), grid)}")
+            grid = None if args.grid.is_dir() else GridConfig.from_yaml(args.grid)
+            out = args.grid if grid is None else Path(grid.out)
+            print(f"wrote {write_report(out, grid)}")
+            if args.export:
+                export_results(out, args.export)
+                print(f"exported the results to {args.export}")
             return 0
         if args.address and args.executor != "ray":
             raise ValueError("--address is for --executor ray")

@@ -200,6 +200,7 @@ def test_a_reset_asked_again_before_a_step_answers_with_the_same_episode_and_a_s
             rclpy.spin_once(node, timeout_sec=0.2)
         stepped = next(status for status in statuses if status.action_stamp == first.header.stamp)
         while not any(state.header.stamp == stepped.header.stamp for state in states) and time.monotonic() < deadline:
+            action_pub.publish(action)  # a repeat re-publishes the step, `state` now that this listener is seen
             rclpy.spin_once(node, timeout_sec=0.2)
         after_a_step, seeded = reset(), reset(seed=123)
     finally:

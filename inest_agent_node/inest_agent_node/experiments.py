@@ -50,7 +50,7 @@ from inest_reward_node.runs import CONFIG_FILE
 from .config import GridConfig
 from .grid_quality import QUALITY_DIR, quality_table
 from .summary import summarise, write_summary
-from .train import RESULTS_FILE, parse_args
+from .train import CHECKPOINT_DIR, DIAGNOSTICS_FILE, HISTORY_FILE, RESULTS_FILE, parse_args
 
 GRID_FILE = "grid.json"
 REPORT_FILE = "report.md"
@@ -58,7 +58,7 @@ REPORT_FILE = "report.md"
 # trains its learning curve and reward diagnostics so far (from its checkpoint)
 REPORT_FILES = (REPORT_FILE, "summary.json", "learning_curves.png", GRID_FILE)
 RUN_FILES = ("config.json", RESULTS_FILE, "learning_curve.png", "coverage.png")
-TRAINING_FILES = ("history.json", "diagnostics.json")
+TRAINING_FILES = (HISTORY_FILE, DIAGNOSTICS_FILE)
 EXECUTORS = ("local", "ray")
 PR_SET_PDEATHSIG = 1  # prctl(2)
 LIBC = ctypes.CDLL(None) if sys.platform == "linux" else None  # loaded here: the child only calls it
@@ -319,28 +319,28 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
     return out / REPORT_FILE
 
 
-def export_results(out: Path, target: Path) -> None:
-    """Copy OUT's report, every run's small files and each method's reward-quality report into
-    `target` (checkpoints, replay buffers and TensorBoard logs stay behind)."""
+def export_results(out: Path, target: Path, runs: set[str]) -> None:
+    """Copy OUT's report, the small files of the `runs` it covers (`method/run`) and each
+    method's reward-quality report into `target` (checkpoints, replay buffers and TensorBoard
+    logs stay behind); earlier copies of those runs and reports are replaced, not merged."""
     if target.resolve() == out.resolve():
         raise ValueError(f"--export {target} is the grid's own folder")
     target.mkdir(parents=True, exist_ok=True)
     for name in REPORT_FILES:
         if (out / name).is_file():
             shutil.copy2(out / name, target / name)
-    for run in sorted(path.parent for path in out.glob(f"*/*/{CONFIG_FILE}")):
-        copy = target / run.relative_to(out)
-        copy.mkdir(parents=True, exist_ok=True)
+    for name in sorted(runs):  # what the report read: a run that evaluated since is left for the next export
+        run, copy = out / name, target / name
+        shutil.rmtree(copy, ignore_errors=True)
+        copy.mkdir(parents=True)
         finished = (run / RESULTS_FILE).is_file()
-        for name in RUN_FILES:
-            if (run / name).is_file():
-                shutil.copy2(run / name, copy / name)
-        for name in TRAINING_FILES:  # a finished run's results hold them; an old copy would mislead
-            (copy / name).unlink(missing_ok=True)
-            if not finished and (run / "checkpoint" / name).is_file():
-                shutil.copy2(run / "checkpoint" / name, copy / name)
+        files = RUN_FILES if finished else (CONFIG_FILE, *(f"{CHECKPOINT_DIR}/{f}" for f in TRAINING_FILES))
+        for file in files:
+            if (run / file).is_file():
+                shutil.copy2(run / file, copy / Path(file).name)
     for quality in out.glob(f"*/{QUALITY_DIR}"):
-        shutil.copytree(quality, target / quality.relative_to(out), dirs_exist_ok=True)
+        shutil.rmtree(target / quality.relative_to(out), ignore_errors=True)
+        shutil.copytree(quality, target / quality.relative_to(out))
 
 
 def positive(text: str) -> int:
@@ -378,7 +378,8 @@ def main(argv: list[str] | None = None) -> int:
             out = args.grid if grid is None else Path(grid.out)
             print(f"wrote {write_report(out, grid)}")
             if args.export:
-                export_results(out, args.export)
+                summary = read_run_file(out / "summary.json", read_json)
+                export_results(out, args.export, {f"{row['method']}/{row['run']}" for row in summary["runs"]})
                 print(f"exported the results to {args.export}")
             return 0
         if args.address and args.executor != "ray":

@@ -209,6 +209,11 @@ class GraphVecEnv(VecEnv):
             new_stamp, messages = results[index]
             status = messages[STATUS]
             observation = np.asarray(status.state, dtype=np.float32)
+            if observation.shape != self.observation_space.shape:
+                raise ValueError(
+                    f"{self.namespaces[index] or '/'}: episode_status carries a state of {observation.size} values, "
+                    f"expected {self.observation_space.shape[0]}"
+                )
             reward = messages.get(REWARD, Reward())
             rewards[index] = reward.total if self.learned_reward else status.env_reward
             info = self.step_info(status, reward)

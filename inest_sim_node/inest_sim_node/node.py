@@ -125,17 +125,20 @@ class SimNode(Node):
             state=values,
         )
         status.header.stamp, status.header.frame_id = stamp, "world"
+        state_msg = State(values=values)
+        state_msg.header.stamp, state_msg.header.frame_id = stamp, "world"
         # status before the images: whoever waits on the reward has it already
-        outputs = [(self.status_pub, status), *outputs]
-        if self.state_pub.get_subscription_count():  # only while someone listens: the agent reads the status
-            state_msg = State(values=values)
-            state_msg.header.stamp, state_msg.header.frame_id = stamp, "world"
-            outputs.insert(0, (self.state_pub, state_msg))
+        outputs = [(self.state_pub, state_msg), (self.status_pub, status), *outputs]
         if self.clock_pub is not None:
             outputs.append((self.clock_pub, Clock(clock=stamp)))
         self.last_outputs = outputs
-        for publisher, msg in outputs:
-            publisher.publish(msg)
+        self.publish_outputs()
+
+    def publish_outputs(self) -> None:
+        """This step's messages; `state` only while someone listens (the agent reads the status)."""
+        for publisher, msg in self.last_outputs:
+            if publisher is not self.state_pub or self.state_pub.get_subscription_count():
+                publisher.publish(msg)
 
     def on_action(self, msg: Action) -> None:
         try:
@@ -150,8 +153,7 @@ class SimNode(Node):
         if stamp == self.time_ns and not self.done:
             self.step(action, stamp)
         elif stamp == self.previous_ns:
-            for publisher, output in self.last_outputs:  # the agent missed this step's outputs
-                publisher.publish(output)
+            self.publish_outputs()  # the agent missed this step's outputs
         elif self.done:
             self.get_logger().warning("the episode is over: call the reset service", throttle_duration_sec=1.0)
         else:

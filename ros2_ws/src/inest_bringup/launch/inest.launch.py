@@ -6,7 +6,7 @@ namespaces sim0, sim1, ..., one reward node scoring all of them, one agent learn
 Simulators and reward node respawn as under `inest-launch` (RESPAWN: supervisor.RespawnPolicy's
 retries and first delay; ROS launch keeps the delay constant where inest-launch doubles it); the
 agent does not (a restarted agent needs resume:=true: start it again with that). While the agent
-trains, simulators and reward node run `nice:=10` steps nicer, as under `inest-launch`.
+trains, simulators and reward node run `nice:=N` (10) steps nicer, as under `inest-launch`.
 """
 
 from pathlib import Path

@@ -49,15 +49,15 @@ from inest_reward_node.runs import CONFIG_FILE
 
 from .config import GridConfig
 from .grid_quality import QUALITY_DIR, quality_table
-from .summary import summarise, write_summary
+from .summary import CURVES_FILE, SUMMARY_FILE, summarise, write_summary
 from .train import CHECKPOINT_DIR, DIAGNOSTICS_FILE, HISTORY_FILE, RESULTS_FILE, parse_args
 
 GRID_FILE = "grid.json"
 REPORT_FILE = "report.md"
 # what `report --export` copies: the report's files, a run's own files, and while a run still
 # trains its learning curve and reward diagnostics so far (from its checkpoint)
-REPORT_FILES = (REPORT_FILE, "summary.json", "learning_curves.png", GRID_FILE)
-RUN_FILES = ("config.json", RESULTS_FILE, "learning_curve.png", "coverage.png")
+REPORT_FILES = (REPORT_FILE, SUMMARY_FILE, CURVES_FILE, GRID_FILE)
+RUN_FILES = (CONFIG_FILE, RESULTS_FILE, "learning_curve.png", "coverage.png")
 TRAINING_FILES = (HISTORY_FILE, DIAGNOSTICS_FILE)
 EXECUTORS = ("local", "ray")
 PR_SET_PDEATHSIG = 1  # prctl(2)
@@ -378,7 +378,7 @@ def main(argv: list[str] | None = None) -> int:
             out = args.grid if grid is None else Path(grid.out)
             print(f"wrote {write_report(out, grid)}")
             if args.export:
-                summary = read_run_file(out / "summary.json", read_json)
+                summary = read_run_file(out / SUMMARY_FILE, read_json)
                 export_results(out, args.export, {f"{row['method']}/{row['run']}" for row in summary["runs"]})
                 print(f"exported the results to {args.export}")
             return 0

@@ -5,13 +5,14 @@ environments, with 1 and with 2 torch threads, and with 1 thread and its updates
 the step on a second thread (`overlap_updates`); the ratio is taken to the fastest. Graph: 4
 `inest-sim-node` processes (lockstep) and one `inest-reward-node` (same model, same bonus),
 the learner in this process on a GraphVecEnv, its updates overlapping the simulators' step
-(the agent node's default), simulators and reward node TRAINING_NICENESS steps nicer than it
-(inest-launch's default while the agent trains). Rounds alternate between the runs so machine
-noise hits all alike.
+(the agent node's default), simulators and reward node TRAINING_NICENESS steps nicer than it and
+on every CPU but the first (inest-launch's defaults while the agent trains). Rounds alternate
+between the runs so machine noise hits all alike.
 Target (issue 5): graph >= 0.9x in-process. Prints one JSON object.
-`graph_train_speed.py [MODEL_FOLDER] [--no-overlap] [--graph-threads=N] [--nice=N]` (default
-model runs/pretrain-main/model; --no-overlap: updates after each step, as in process; --nice=0:
-every node at the agent's priority; the nodes' output goes to runs/benchmarks/graph_train_speed/).
+`graph_train_speed.py [MODEL_FOLDER] [--no-overlap] [--graph-threads=N] [--nice=N] [--env-cpus=CPUS]`
+(default model runs/pretrain-main/model; --no-overlap: updates after each step, as in process;
+--nice=0: every node at the agent's priority; --env-cpus=all: nodes on any CPU, as inest-launch's
+`--env-cpus`; the nodes' output goes to runs/benchmarks/graph_train_speed/).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import torch
 from inest_agent_node.graph_env import GraphVecEnv
 from inest_agent_node.train import Trainer
 from inest_bringup.launcher import graph_environment
-from inest_bringup.supervisor import TRAINING_NICENESS, niced
+from inest_bringup.supervisor import AUTO_CPUS, TRAINING_NICENESS, environment_prefix, format_cpus, training_cpus
 from inest_reward_node.intrinsic import IntrinsicConfig
 from train_speed import RANDOM_STEPS, ROUND_STEPS, ROUNDS, WARM_UP_STEPS, median_speeds, paired_ratio, trainer_speeds
 
@@ -42,6 +43,7 @@ OVERLAP = "--no-overlap" not in sys.argv  # the agent node's default: updates ov
 # other core to the simulators and the reward node (--graph-threads=2 to match in-process)
 GRAPH_THREADS = int(next((a.split("=")[1] for a in sys.argv if a.startswith("--graph-threads=")), "1"))
 NICENESS = int(next((a.split("=")[1] for a in sys.argv if a.startswith("--nice=")), str(TRAINING_NICENESS)))
+ENV_CPUS = training_cpus(next((a.split("=")[1] for a in sys.argv if a.startswith("--env-cpus=")), AUTO_CPUS))
 
 
 def main() -> None:
@@ -54,12 +56,13 @@ def main() -> None:
     common = {"num_envs": SIMS, "total_steps": WARM_UP_STEPS + ROUNDS * ROUND_STEPS, "eval_every": 10**9}
     sac = SacConfig(learning_starts=RANDOM_STEPS)
     Path(LOGS).mkdir(parents=True, exist_ok=True)
+    prefix = environment_prefix(NICENESS, ENV_CPUS)
     with tempfile.TemporaryDirectory() as root:
         env = graph_environment(domain, root)
         os.environ.update(env)  # this process's own participant joins the same private graph
         processes = [
             subprocess.Popen(
-                niced([str(bin_dir / "inest-sim-node"), "--ros-args", "-r", f"__ns:=/{namespace}", *EGO], NICENESS),
+                [*prefix, str(bin_dir / "inest-sim-node"), "--ros-args", "-r", f"__ns:=/{namespace}", *EGO],
                 env=env,
                 stdout=open(f"{LOGS}/{namespace}.log", "w"),  # noqa: SIM115
                 stderr=subprocess.STDOUT,
@@ -68,17 +71,15 @@ def main() -> None:
         ]
         processes.append(
             subprocess.Popen(
-                niced(
-                    [
-                        str(bin_dir / "inest-reward-node"),
-                        "--ros-args",
-                        "-p",
-                        f"model:={model}",
-                        "-p",
-                        f"streams:=[{', '.join(namespaces)}]",
-                    ],
-                    NICENESS,
-                ),
+                [
+                    *prefix,
+                    str(bin_dir / "inest-reward-node"),
+                    "--ros-args",
+                    "-p",
+                    f"model:={model}",
+                    "-p",
+                    f"streams:=[{', '.join(namespaces)}]",
+                ],
                 env=env,
                 stdout=open(f"{LOGS}/reward.log", "w"),  # noqa: SIM115
                 stderr=subprocess.STDOUT,
@@ -142,6 +143,7 @@ def main() -> None:
                 "overlap_updates": OVERLAP,
                 "graph_learner_threads": GRAPH_THREADS,
                 "environment_niceness": NICENESS,
+                "environment_cpus": format_cpus(ENV_CPUS) if ENV_CPUS else "all",
                 "settings": f"default SAC config, {SIMS} environments = simulator processes, INEST-3 + embedding bonus",
             }
         )

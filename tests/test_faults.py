@@ -23,7 +23,7 @@ import yaml
 from inest_agent_node.train import Trainer
 from inest_bringup.launcher import graph_environment
 from inest_bringup.monitor import GraphMonitor
-from inest_bringup.supervisor import TRAINING_NICENESS, Outcome, RespawnPolicy, Supervisor
+from inest_bringup.supervisor import TRAINING_NICENESS, Outcome, RespawnPolicy, Supervisor, training_cpus
 from inest_interfaces.msg import Reward
 from inest_reward_node.serving import StreamScorer
 from rosgraph import BIN, fresh_domain
@@ -72,6 +72,17 @@ def test_bad_parameters_are_one_line_and_exit_2_on_every_node(tmp_path):
         ),
     ]
     started = [(start(tmp_path, command[0], "--ros-args", *command[1:]), expected) for command, expected in cases]
+    for process, expected in started:
+        assert_refused(process, *expected)
+
+
+def test_bad_launcher_settings_are_one_line_and_exit_2(tmp_path):
+    cases = [
+        (["--env-cpus", "999"], ["--env-cpus: CPU list '999' names CPUs this machine does not offer"]),
+        (["--env-cpus", "one"], ["--env-cpus: 'one' is not a CPU list such as 1 or 0,2-3"]),
+        (["--nice", "20"], ["--nice must be between 0 and 19, got 20"]),
+    ]
+    started = [(start(tmp_path, "inest-launch", "--out", str(tmp_path), *args), expected) for args, expected in cases]
     for process, expected in started:
         assert_refused(process, *expected)
 
@@ -174,7 +185,7 @@ def test_the_ros_launch_file_respawns_simulators_and_reward_node_as_inest_launch
     launch_file = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(launch_file)
     arguments = {"sims": "2", "params_file": "inest.params.yaml", "mode": "lockstep", "model": "", "agent": "true",
-                 "nice": str(TRAINING_NICENESS)}  # fmt: skip
+                 "nice": str(TRAINING_NICENESS), "env_cpus": "all"}  # fmt: skip
     nodes = launch_file.graph(arguments | {"out": "runs/graph/agent"})
     executables = [node.settings["executable"] for node in nodes]
     assert executables == ["inest-sim-node", "inest-sim-node", "inest-reward-node", "inest-agent-node"]
@@ -186,6 +197,12 @@ def test_the_ros_launch_file_respawns_simulators_and_reward_node_as_inest_launch
     assert [node.settings["namespace"] for node in nodes[:2]] == ["sim0", "sim1"]
     # while the agent trains, the environment side runs nicer than it, as under inest-launch
     assert [node.settings.get("prefix") for node in nodes] == [f"nice -n {TRAINING_NICENESS}"] * 3 + [None]
+    # ... and on the CPUs given, here the one CPU the test runs on
+    cpu = min(os.sched_getaffinity(0))
+    pinned = launch_file.graph(arguments | {"env_cpus": str(cpu), "out": "runs/graph/agent"})
+    assert pinned[0].settings["prefix"] == f"taskset -c {cpu} nice -n {TRAINING_NICENESS}"
+    with pytest.raises(ValueError, match="nice:=20"):
+        launch_file.graph(arguments | {"nice": "20", "out": "runs/graph/agent"})
     watching = launch_file.graph(arguments | {"agent": "false", "out": "runs/graph/agent"})
     assert [node.settings.get("prefix") for node in watching] == [None] * 3
 
@@ -221,8 +238,9 @@ def test_the_launcher_respawns_a_killed_simulator_and_ctrl_c_checkpoints_the_age
     env = graph_environment(domain, tmp_path / "ros")
     assert count_steps(env, 150, timeout=180) >= 150
     pid = int(re.search(r"started sim0 \(pid (\d+)\)", (tmp_path / "launcher.log").read_text())[1])
-    # the simulator runs nicer than the agent, whose update sets the pace of training
+    # the simulator runs nicer than the agent, whose update sets the pace of training, and off its CPU
     assert os.getpriority(os.PRIO_PROCESS, pid) == min(19, os.getpriority(os.PRIO_PROCESS, 0) + TRAINING_NICENESS)
+    assert os.sched_getaffinity(pid) == (training_cpus("auto") or os.sched_getaffinity(0))
     os.kill(pid, signal.SIGKILL)
     wait_for_line(tmp_path / "launcher.log", "restarted sim0")
     assert count_steps(env, 100, timeout=180) >= 100  # the agent reset the new simulator and trains on

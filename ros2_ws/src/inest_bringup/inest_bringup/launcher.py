@@ -6,7 +6,8 @@ machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless `--discovery subnet`, a
 fast-discovery Fast DDS profile shipped next to the params file. The run folder gets each
 node's output in logs/, ROS's own logs in logs/ros/, the agent's run in agent/ and, at the end,
 reward_trace.png; `--record FILE` adds the recorder (inest-record) to the graph. While the agent
-trains, simulators and reward node run `--nice` steps nicer than it (TRAINING_NICENESS). A node that
+trains, simulators and reward node run `--nice` steps nicer than it (TRAINING_NICENESS) and on
+`--env-cpus` (every CPU but the first, which the agent's update gets to itself). A node that
 exits is restarted (supervisor.py: `--respawn` times in a row, with back-off; the agent with
 resume:=true); a node that keeps dying or refuses its configuration stops the graph. Ctrl-C or
 SIGTERM (or the agent finishing) stops every child, the agent first (it saves a checkpoint);
@@ -30,7 +31,7 @@ from inest_agent_node.train import RESULTS_FILE
 from inest_reward_node.runs import CONFIG_FILE
 
 from .recording import RecordingError, check_target
-from .supervisor import TRAINING_NICENESS, RespawnPolicy, Supervisor, niced
+from .supervisor import AUTO_CPUS, TRAINING_NICENESS, RespawnPolicy, Supervisor, environment_prefix, training_cpus
 
 CONFIG_DIR_NAME = "config"
 PARAMS_FILE = "inest.params.yaml"
@@ -88,17 +89,17 @@ def node_commands(args: argparse.Namespace, run_dir: Path) -> list[tuple[str, li
             raise ValueError(f"--param {setting!r}: expected NODE:NAME:=VALUE with NODE one of {NODES}")
         extra[node] += ["-p", assignment]
     params = ["--ros-args", "--params-file", str(args.params)]
-    niceness = 0 if args.no_agent else args.nice
+    prefix = [] if args.no_agent else environment_prefix(args.nice, training_cpus(args.env_cpus))
     commands = []
     for index, namespace in enumerate(namespaces):
         clock = [] if index == 0 else ["-p", "publish_clock:=false"]
         if args.realtime:
             clock += ["-p", "mode:=realtime"]
         simulator = [executable("inest-sim-node"), *params, "-r", f"__ns:=/{namespace}", *clock, *extra["sim"]]
-        commands.append((namespace, niced(simulator, niceness)))
+        commands.append((namespace, [*prefix, *simulator]))
     model = ["-p", f"model:={args.model}"] if args.model else []
     reward = ["-p", f"streams:={listed}", *model]
-    commands.append(("reward", niced([executable("inest-reward-node"), *params, *reward, *extra["reward"]], niceness)))
+    commands.append(("reward", [*prefix, executable("inest-reward-node"), *params, *reward, *extra["reward"]]))
     if not args.no_agent:
         agent = ["-p", f"namespaces:={listed}", "-p", f"out:={run_dir / 'agent'}", *model]
         if args.steps is not None:
@@ -168,6 +169,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         default=TRAINING_NICENESS,
         help="while the agent trains, simulators and reward node run this much nicer (0: same priority)",
     )
+    parser.add_argument(
+        "--env-cpus",
+        default=AUTO_CPUS,
+        metavar="CPUS",
+        help="while the agent trains, simulators and reward node run on these CPUs (taskset list such as 1 or "
+        "2-7; auto: all but the first, which the agent's update gets; all: no confinement)",
+    )
     args = parser.parse_args(argv)
     if args.sims < 1:
         parser.error("--sims must be at least 1")
@@ -175,6 +183,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         parser.error("--respawn and --respawn-delay must be >= 0")
     if not 0 <= args.nice <= 19:
         parser.error(f"--nice must be between 0 and 19, got {args.nice}")
+    try:
+        training_cpus(args.env_cpus)
+    except ValueError as error:
+        parser.error(f"--env-cpus: {error}")
     if not args.params.is_file():
         parser.error(f"no params file at {args.params}")
     if args.record:

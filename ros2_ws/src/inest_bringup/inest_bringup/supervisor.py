@@ -1,5 +1,5 @@
 """Keeping the graph's node processes alive (no ROS imports): the launcher's respawn logic, and
-the priority the environment side runs at while the agent trains.
+the priority and CPUs the environment side runs on while the agent trains.
 
 Like `respawn`/`respawn_delay` of ROS launch, with a bound: a node that exits is started again
 after `delay` seconds, doubled for each further restart in a row; one that stays up for
@@ -10,6 +10,8 @@ keeps dying (more than `max_respawns` restarts in a row), when one refuses its c
 
 from __future__ import annotations
 
+import os
+import shutil
 import subprocess
 import sys
 import time
@@ -23,11 +25,52 @@ FINISHES = "agent"  # the node whose exit 0 means the run is over
 # agent's update, which sets the pace of training over the graph, then does not wait behind them
 # for a core (measured in docs/performance.md). Niceness only matters when every core is busy.
 TRAINING_NICENESS = 10
+# ... and on every CPU this process may use but the first (AUTO_CPUS), which the update then has
+# to itself: no simulator is scheduled next to it or moves through its cache (docs/performance.md).
+AUTO_CPUS, ALL_CPUS = "auto", "all"
 
 
-def niced(argv: list[str], niceness: int) -> list[str]:
-    """`argv` run `niceness` steps nicer than this process (coreutils `nice`, like a ROS launch prefix)."""
-    return ["nice", "-n", str(niceness), *argv] if niceness else argv
+def parse_cpus(text: str) -> set[int]:
+    """A CPU list in taskset's syntax ("1", "0,2-3") as a set of CPU numbers."""
+    cpus: set[int] = set()
+    for part in text.split(","):
+        first, _, last = part.strip().partition("-")
+        try:
+            low, high = int(first), int(last or first)
+        except ValueError:
+            raise ValueError(f"{text!r} is not a CPU list such as 1 or 0,2-3") from None
+        if low < 0 or high < low:
+            raise ValueError(f"{text!r} is not a CPU list such as 1 or 0,2-3")
+        cpus.update(range(low, high + 1))
+    return cpus
+
+
+def training_cpus(setting: str) -> set[int] | None:
+    """The CPUs simulators and reward node are confined to while the agent trains, None for no
+    confinement: AUTO_CPUS every CPU this process may use but the lowest (None with one CPU or
+    without util-linux's taskset), ALL_CPUS None, else a CPU list of CPUs this process may use."""
+    usable = os.sched_getaffinity(0)
+    if setting == ALL_CPUS:
+        return None
+    if setting == AUTO_CPUS:
+        return usable - {min(usable)} if len(usable) > 1 and shutil.which("taskset") else None
+    cpus = parse_cpus(setting)
+    if not cpus <= usable:
+        raise ValueError(f"CPU list {setting!r} names CPUs this machine does not offer (usable: {format_cpus(usable)})")
+    if shutil.which("taskset") is None:
+        raise ValueError(f"CPU list {setting!r} needs taskset (util-linux), which is not installed")
+    return cpus
+
+
+def format_cpus(cpus: set[int]) -> str:
+    return ",".join(str(cpu) for cpu in sorted(cpus))
+
+
+def environment_prefix(niceness: int, cpus: set[int] | None) -> list[str]:
+    """The command prefix of simulators and reward node while the agent trains, like a ROS launch
+    prefix: util-linux `taskset -c CPUS` and coreutils `nice -n NICENESS`, each only when set."""
+    pinned = ["taskset", "-c", format_cpus(cpus)] if cpus else []
+    return [*pinned, *(["nice", "-n", str(niceness)] if niceness else [])]
 
 
 @dataclass(frozen=True)

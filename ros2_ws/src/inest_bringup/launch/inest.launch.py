@@ -6,13 +6,14 @@ namespaces sim0, sim1, ..., one reward node scoring all of them, one agent learn
 Simulators and reward node respawn as under `inest-launch` (RESPAWN: supervisor.RespawnPolicy's
 retries and first delay; ROS launch keeps the delay constant where inest-launch doubles it); the
 agent does not (a restarted agent needs resume:=true: start it again with that). While the agent
-trains, simulators and reward node run `nice:=N` (10) steps nicer, as under `inest-launch`.
+trains, simulators and reward node run `nice:=N` (10) steps nicer and on `env_cpus:=CPUS` (auto: every
+CPU but the first), as under `inest-launch`.
 """
 
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
-from inest_bringup.supervisor import TRAINING_NICENESS, RespawnPolicy
+from inest_bringup.supervisor import AUTO_CPUS, TRAINING_NICENESS, RespawnPolicy, environment_prefix, training_cpus
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction, SetEnvironmentVariable
 from launch.substitutions import LaunchConfiguration
@@ -31,8 +32,13 @@ def graph(context):
     namespaces = [f"sim{index}" for index in range(sims)]
     params = value("params_file")
     training = value("agent").lower() == "true"
-    niceness = int(value("nice")) if training else 0
-    prefix = {"prefix": f"nice -n {niceness}"} if niceness else {}
+    prefix = {}
+    if training:
+        niceness = int(value("nice"))
+        if not 0 <= niceness <= 19:
+            raise ValueError(f"nice:={niceness}: must be between 0 and 19")
+        command = environment_prefix(niceness, training_cpus(value("env_cpus")))
+        prefix = {"prefix": " ".join(command)} if command else {}
     nodes = [
         Node(
             package="inest_sim_node",
@@ -81,6 +87,12 @@ def generate_launch_description() -> LaunchDescription:
                 "nice",
                 default_value=str(TRAINING_NICENESS),
                 description="while the agent trains, simulators and reward node run this much nicer (0: off)",
+            ),
+            DeclareLaunchArgument(
+                "env_cpus",
+                default_value=AUTO_CPUS,
+                description="while the agent trains, simulators and reward node run on these CPUs "
+                "(taskset list; auto: all but the first, which the agent's update gets; all: anywhere)",
             ),
             SetEnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE", str(SHARE / "config" / "fastdds_localhost.xml")),
             OpaqueFunction(function=graph),

@@ -231,6 +231,12 @@ def test_a_bad_parameter_stops_the_launcher_with_its_line_and_exit_2(tiny_model,
     assert "Traceback" not in output and "restarting" not in output
 
 
+def assert_runs_as_environment(pid: int) -> None:
+    """The simulator runs nicer than the agent, whose update sets the pace of training, and off its CPU."""
+    assert os.getpriority(os.PRIO_PROCESS, pid) == min(19, os.getpriority(os.PRIO_PROCESS, 0) + TRAINING_NICENESS)
+    assert os.sched_getaffinity(pid) == (training_cpus("auto") or os.sched_getaffinity(0))
+
+
 def test_the_launcher_respawns_a_killed_simulator_and_ctrl_c_checkpoints_the_agent(tiny_model, tmp_path):
     domain = fresh_domain()
     agent = [arg for value in [*TINY_AGENT[1::2], "step_timeout:=1.0"] for arg in ("--param", f"agent:{value}")]
@@ -238,12 +244,13 @@ def test_the_launcher_respawns_a_killed_simulator_and_ctrl_c_checkpoints_the_age
     env = graph_environment(domain, tmp_path / "ros")
     assert count_steps(env, 150, timeout=180) >= 150
     pid = int(re.search(r"started sim0 \(pid (\d+)\)", (tmp_path / "launcher.log").read_text())[1])
-    # the simulator runs nicer than the agent, whose update sets the pace of training, and off its CPU
-    assert os.getpriority(os.PRIO_PROCESS, pid) == min(19, os.getpriority(os.PRIO_PROCESS, 0) + TRAINING_NICENESS)
-    assert os.sched_getaffinity(pid) == (training_cpus("auto") or os.sched_getaffinity(0))
+    assert_runs_as_environment(pid)
     os.kill(pid, signal.SIGKILL)
     wait_for_line(tmp_path / "launcher.log", "restarted sim0")
     assert count_steps(env, 100, timeout=180) >= 100  # the agent reset the new simulator and trains on
+    assert_runs_as_environment(
+        int(re.search(r"restarted sim0 \(pid (\d+)\)", (tmp_path / "launcher.log").read_text())[1])
+    )
     launcher.send_signal(signal.SIGINT)
     assert launcher.wait(180) == 130
     logs = tmp_path / "graph" / "logs"

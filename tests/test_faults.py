@@ -78,8 +78,10 @@ def test_bad_parameters_are_one_line_and_exit_2_on_every_node(tmp_path):
 
 def test_bad_launcher_settings_are_one_line_and_exit_2(tmp_path):
     cases = [
-        (["--env-cpus", "999"], ["--env-cpus: CPU list '999' names CPUs this machine does not offer"]),
-        (["--env-cpus", "one"], ["--env-cpus: 'one' is not a CPU list such as 1 or 0,2-3"]),
+        (["--env-cpus", "999"], ["--env-cpus: CPU list '999' names CPUs this process may not run on"]),
+        (["--env-cpus", "0-1000000000"], ["--env-cpus: CPU list '0-1000000000' names CPUs this process may not"]),
+        (["--env-cpus", "one"], ["--env-cpus: 'one' is not a CPU list such as 1 or 0,2-3 (nor auto or all)"]),
+        (["--env-cpus", "1-"], ["--env-cpus: '1-' is not a CPU list such as 1 or 0,2-3"]),
         (["--nice", "20"], ["--nice must be between 0 and 19, got 20"]),
     ]
     started = [(start(tmp_path, "inest-launch", "--out", str(tmp_path), *args), expected) for args, expected in cases]
@@ -201,8 +203,10 @@ def test_the_ros_launch_file_respawns_simulators_and_reward_node_as_inest_launch
     cpu = min(os.sched_getaffinity(0))
     pinned = launch_file.graph(arguments | {"env_cpus": str(cpu), "out": "runs/graph/agent"})
     assert pinned[0].settings["prefix"] == f"taskset -c {cpu} nice -n {TRAINING_NICENESS}"
-    with pytest.raises(ValueError, match="nice:=20"):
+    with pytest.raises(ValueError, match="nice:=20: must be an integer between 0 and 19"):
         launch_file.graph(arguments | {"nice": "20", "out": "runs/graph/agent"})
+    with pytest.raises(ValueError, match="env_cpus:=one: 'one' is not a CPU list"):
+        launch_file.graph(arguments | {"env_cpus": "one", "out": "runs/graph/agent"})
     watching = launch_file.graph(arguments | {"agent": "false", "out": "runs/graph/agent"})
     assert [node.settings.get("prefix") for node in watching] == [None] * 3
 

@@ -84,12 +84,13 @@ class AgentNode(Node):
             trainer = Trainer(config, settings.out, settings.resume, env=env)
             try:
                 result = trainer.train()
-            except (KeyboardInterrupt, Exception):
-                if self.context.ok():
+            except (KeyboardInterrupt, Exception) as error:
+                # Ctrl-C or SIGTERM under the step: a KeyboardInterrupt (raised before rclpy's signal
+                # thread has shut the context down, so it is not checked), or, once ROS is down, an
+                # ExternalShutdownException or an RCLError from a publisher whose context just went
+                if not isinstance(error, KeyboardInterrupt) and self.context.ok():
                     raise
-                # Ctrl-C or SIGTERM shut ROS down under the step (KeyboardInterrupt, ExternalShutdownException,
-                # or an RCLError from a publisher whose context just went): keep what was learned
-                trainer.save_checkpoint()
+                trainer.save_checkpoint()  # keep what was learned
                 print(
                     f"inest-agent-node: stopped at step {trainer.model.num_timesteps}; checkpoint saved in "
                     f"{Path(settings.out) / CHECKPOINT_DIR} (resume:=true continues)",

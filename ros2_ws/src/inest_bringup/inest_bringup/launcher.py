@@ -7,7 +7,7 @@ fast-discovery Fast DDS profile shipped next to the params file. The run folder 
 node's output in logs/, ROS's own logs in logs/ros/, the agent's run in agent/ and, at the end,
 reward_trace.png; `--record FILE` adds the recorder (inest-record) to the graph. While the agent
 trains, simulators and reward node run `--nice` steps nicer than it (TRAINING_NICENESS) and on
-`--env-cpus` (every CPU but the first, which the agent's update gets to itself). A node that
+`--env-cpus` (every CPU but the first, so the agent's update has a CPU no simulator runs on). A node that
 exits is restarted (supervisor.py: `--respawn` times in a row, with back-off; the agent with
 resume:=true); a node that keeps dying or refuses its configuration stops the graph. Ctrl-C or
 SIGTERM (or the agent finishing) stops every child, the agent first (it saves a checkpoint);
@@ -174,7 +174,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         default=AUTO_CPUS,
         metavar="CPUS",
         help="while the agent trains, simulators and reward node run on these CPUs (taskset list such as 1 or "
-        "2-7; auto: all but the first, which the agent's update gets; all: no confinement)",
+        "1-3; auto: all but the first, leaving that one to the agent's update; all: no confinement)",
     )
     args = parser.parse_args(argv)
     if args.sims < 1:

@@ -116,7 +116,8 @@ class GraphMonitor(Node):
         if subtasks:
             bottom.set_yticks(range(subtasks + 1), [*map(str, range(subtasks)), "done"])
             bottom.set_ylim(-0.2, subtasks + 0.2)
-        top.legend(loc="upper left")
+        if any(view.trace for view in self.views):  # an empty legend only warns
+            top.legend(loc="upper left")
         figure.tight_layout()
         return figure
 

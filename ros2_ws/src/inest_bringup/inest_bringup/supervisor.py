@@ -11,6 +11,7 @@ keeps dying (more than `max_respawns` restarts in a row), when one refuses its c
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -25,22 +26,28 @@ FINISHES = "agent"  # the node whose exit 0 means the run is over
 # agent's update, which sets the pace of training over the graph, then does not wait behind them
 # for a core (measured in docs/performance.md). Niceness only matters when every core is busy.
 TRAINING_NICENESS = 10
-# ... and on every CPU this process may use but the first (AUTO_CPUS), which the update then has
-# to itself: no simulator is scheduled next to it or moves through its cache (docs/performance.md).
+# ... and on every CPU this process may use but the first (AUTO_CPUS): the update then runs on a
+# CPU no simulator is scheduled on, so none preempts it or moves through its cache
+# (docs/performance.md).
 AUTO_CPUS, ALL_CPUS = "auto", "all"
+CPU_LIST = re.compile(r"[0-9]+(-[0-9]+)?(,[0-9]+(-[0-9]+)?)*")  # taskset's list form, without strides
 
 
-def parse_cpus(text: str) -> set[int]:
-    """A CPU list in taskset's syntax ("1", "0,2-3") as a set of CPU numbers."""
+def parse_cpus(text: str, usable: set[int]) -> set[int]:
+    """A CPU list in taskset's syntax ("1", "0,2-3") as a set of CPU numbers, each one of `usable`
+    (checked range by range, so "0-1000000000" is refused before it is built)."""
+    if not CPU_LIST.fullmatch(text):
+        raise ValueError(f"{text!r} is not a CPU list such as 1 or 0,2-3 (nor {AUTO_CPUS} or {ALL_CPUS})")
     cpus: set[int] = set()
     for part in text.split(","):
-        first, _, last = part.strip().partition("-")
-        try:
-            low, high = int(first), int(last or first)
-        except ValueError:
-            raise ValueError(f"{text!r} is not a CPU list such as 1 or 0,2-3") from None
-        if low < 0 or high < low:
-            raise ValueError(f"{text!r} is not a CPU list such as 1 or 0,2-3")
+        first, _, last = part.partition("-")
+        low, high = int(first), int(last or first)
+        if high < low:
+            raise ValueError(f"{text!r} is not a CPU list: the range {part} runs backwards")
+        if high > max(usable) or not set(range(low, high + 1)) <= usable:
+            raise ValueError(
+                f"CPU list {text!r} names CPUs this process may not run on (it may use {format_cpus(usable)})"
+            )
         cpus.update(range(low, high + 1))
     return cpus
 
@@ -54,9 +61,7 @@ def training_cpus(setting: str) -> set[int] | None:
         return None
     if setting == AUTO_CPUS:
         return usable - {min(usable)} if len(usable) > 1 and shutil.which("taskset") else None
-    cpus = parse_cpus(setting)
-    if not cpus <= usable:
-        raise ValueError(f"CPU list {setting!r} names CPUs this machine does not offer (usable: {format_cpus(usable)})")
+    cpus = parse_cpus(setting, usable)
     if shutil.which("taskset") is None:
         raise ValueError(f"CPU list {setting!r} needs taskset (util-linux), which is not installed")
     return cpus

@@ -34,10 +34,14 @@ def graph(context):
     training = value("agent").lower() == "true"
     prefix = {}
     if training:
-        niceness = int(value("nice"))
-        if not 0 <= niceness <= 19:
-            raise ValueError(f"nice:={niceness}: must be between 0 and 19")
-        command = environment_prefix(niceness, training_cpus(value("env_cpus")))
+        nice, env_cpus = value("nice"), value("env_cpus")
+        if not (nice.isdigit() and 0 <= int(nice) <= 19):
+            raise ValueError(f"nice:={nice}: must be an integer between 0 and 19")
+        try:
+            cpus = training_cpus(env_cpus)
+        except ValueError as error:
+            raise ValueError(f"env_cpus:={env_cpus}: {error}") from None
+        command = environment_prefix(int(nice), cpus)
         prefix = {"prefix": " ".join(command)} if command else {}
     nodes = [
         Node(

@@ -181,6 +181,11 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     finished = export / "oracle" / "seed0"
     assert (finished / "results.json").exists() and not (finished / "checkpoint").exists()
     assert json.loads((export / "oracle" / "seed2" / "history.json").read_text()) == curve[:1]
+    # paths under the checkout it ran in are relative in the copies: the same in any checkout
+    config = tmp_path / "oracle" / "seed0" / "config.json"
+    config.write_text(json.dumps({"model": str(Path.cwd().resolve() / "results" / "m"), "other": "/elsewhere/m"}))
+    assert main(["report", str(tmp_path), "--export", str(export)]) == 0
+    assert json.loads((finished / "config.json").read_text()) == {"model": "results/m", "other": "/elsewhere/m"}
     assert main(["report", str(tmp_path), "--export", str(tmp_path)]) == 2
     assert capsys.readouterr().err.startswith("inest-experiments: --export")
 

@@ -322,25 +322,47 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
 def export_results(out: Path, target: Path, runs: set[str]) -> None:
     """Copy OUT's report, the small files of the `runs` it covers (`method/run`) and each
     method's reward-quality report into `target` (checkpoints, replay buffers and TensorBoard
-    logs stay behind); earlier copies of those runs and reports are replaced, not merged."""
+    logs stay behind); earlier copies of those runs and reports are replaced, not merged. Paths
+    under the working directory (the checkout the grid ran in) are written relative to it in
+    the JSON copies, so they read the same in any checkout."""
     if target.resolve() == out.resolve():
         raise ValueError(f"--export {target} is the grid's own folder")
     target.mkdir(parents=True, exist_ok=True)
+    copy = partial(copy_relative, root=Path.cwd().resolve())
     for name in REPORT_FILES:
         if (out / name).is_file():
-            shutil.copy2(out / name, target / name)
+            copy(out / name, target / name)
     for name in sorted(runs):  # what the report read: a run that evaluated since is left for the next export
-        run, copy = out / name, target / name
-        shutil.rmtree(copy, ignore_errors=True)
-        copy.mkdir(parents=True)
+        run, run_copy = out / name, target / name
+        shutil.rmtree(run_copy, ignore_errors=True)
+        run_copy.mkdir(parents=True)
         finished = (run / RESULTS_FILE).is_file()
         files = RUN_FILES if finished else (CONFIG_FILE, *(f"{CHECKPOINT_DIR}/{f}" for f in TRAINING_FILES))
         for file in files:
             if (run / file).is_file():
-                shutil.copy2(run / file, copy / Path(file).name)
+                copy(run / file, run_copy / Path(file).name)
     for quality in out.glob(f"*/{QUALITY_DIR}"):
         shutil.rmtree(target / quality.relative_to(out), ignore_errors=True)
-        shutil.copytree(quality, target / quality.relative_to(out))
+        shutil.copytree(quality, target / quality.relative_to(out), copy_function=copy)
+
+
+def copy_relative(source: Path | str, destination: Path | str, root: Path) -> None:
+    """shutil.copy2, except that a JSON file's strings naming paths under `root` become relative to it."""
+    if Path(source).suffix != ".json":
+        shutil.copy2(source, destination)
+        return
+    prefix = f"{root}/"
+
+    def relative(value: Any) -> Any:
+        if isinstance(value, str):
+            return value.removeprefix(prefix)
+        if isinstance(value, list):
+            return [relative(item) for item in value]
+        if isinstance(value, dict):
+            return {key: relative(item) for key, item in value.items()}
+        return value
+
+    Path(destination).write_text(json.dumps(relative(json.loads(Path(source).read_text())), indent=2) + "\n")
 
 
 def positive(text: str) -> int:

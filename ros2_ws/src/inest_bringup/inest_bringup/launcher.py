@@ -89,7 +89,7 @@ def node_commands(args: argparse.Namespace, run_dir: Path) -> list[tuple[str, li
             raise ValueError(f"--param {setting!r}: expected NODE:NAME:=VALUE with NODE one of {NODES}")
         extra[node] += ["-p", assignment]
     params = ["--ros-args", "--params-file", str(args.params)]
-    prefix = [] if args.no_agent else environment_prefix(args.nice, training_cpus(args.env_cpus))
+    prefix = [] if args.no_agent else environment_prefix(args.nice, args.environment_cpus)
     commands = []
     for index, namespace in enumerate(namespaces):
         clock = [] if index == 0 else ["-p", "publish_clock:=false"]
@@ -184,7 +184,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     if not 0 <= args.nice <= 19:
         parser.error(f"--nice must be between 0 and 19, got {args.nice}")
     try:
-        training_cpus(args.env_cpus)
+        args.environment_cpus = training_cpus(args.env_cpus)  # parsed once, None: no confinement
     except ValueError as error:
         parser.error(f"--env-cpus: {error}")
     if not args.params.is_file():

@@ -96,7 +96,7 @@ def generate_launch_description() -> LaunchDescription:
                 "env_cpus",
                 default_value=AUTO_CPUS,
                 description="while the agent trains, simulators and reward node run on these CPUs "
-                "(taskset list; auto: all but the first, which the agent's update gets; all: anywhere)",
+                "(taskset list; auto: all but the first, leaving that one to the agent's update; all: anywhere)",
             ),
             SetEnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE", str(SHARE / "config" / "fastdds_localhost.xml")),
             OpaqueFunction(function=graph),

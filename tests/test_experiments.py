@@ -140,6 +140,10 @@ def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, caps
         ("methods: {oracle: {}}\nseeds: [1, 1]\n", [], "seeds must differ"),
         ("methods: {oracle: {}}\ndemos: nowhere\n", [], "no demonstration dataset at"),
         ("methods: {oracle: {}}\nout: [a]\n", [], "out must be a path"),
+        ("methods: {oracle: {reference: {score: 73}}}\n", [], "reference score must be a number in [0, 1]"),
+        ("methods: {oracle: {reference: {rate: 0.2}}}\n", [], "unknown reference setting(s) of oracle ['rate']"),
+        ("methods: {oracle: {}}\ntables: {t: {methods: [holdr]}}\n", [], "table t: methods must be some of"),
+        ("methods: {oracle: {}}\ntables: {t: {methods: oracle}}\n", [], "table t must be a mapping of a title"),
     ],
 )
 def test_bad_grids_are_one_line_and_exit_2(tmp_path, capsys, monkeypatch, grid, extra, message):
@@ -172,12 +176,34 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     assert "| oracle | 2 of 3 |" in report and "| holdr | 0 of 3 | | not finished |" in report
     assert main(["report", str(tmp_path / "nothing")]) == 2
     assert capsys.readouterr().err.count("\n") == 1
+    # comparisons as their own tables and figures, with a published result beside the method's own
+    grid.write_text(
+        yaml.safe_dump(
+            {
+                "methods": {"oracle": {"reference": {"score": 0.7, "success": 0.2245}}, "holdr": {}},
+                "out": str(tmp_path),
+                "reference_label": "thesis",
+                "tables": {"main": {"title": "Oracle against HOLD-R", "methods": ["holdr", "oracle"]}},
+            }
+        )
+    )
+    assert main(["report", str(grid)]) == 0
+    report = (tmp_path / "report.md").read_text()
+    table = report.split("## Oracle against HOLD-R")[1].split("## Every method")[0]
+    assert "| 0 / 1 / 2 / 3 blocks | thesis |" in table
+    assert table.index("| holdr | 0 of 3 | | not finished | | | |") < table.index("| oracle | 2 of 3 | 300 | 0.850")
+    assert "| 0.70, 22.45 % |" in table and "(learning_curves_main.png)" in table
+    assert (tmp_path / "learning_curves_main.png").exists()
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["tables"] == {"main": {"title": "Oracle against HOLD-R", "methods": ["holdr", "oracle"]}}
+    assert summary["references"] == {"oracle": {"label": "thesis", "score": 0.7, "success": 0.2245}}
     # the export: report and runs' small files, a training run's curve so far, no checkpoints
     export = tmp_path.with_name(f"{tmp_path.name}-export")
     (tmp_path / "oracle" / "seed0" / "checkpoint" / "replay_buffer.pkl").write_bytes(b"large")
     assert main(["report", str(tmp_path), "--export", str(export)]) == 0
     assert (export / "report.md").read_text() == (tmp_path / "report.md").read_text()
     assert (export / "summary.json").exists() and (export / "learning_curves.png").exists()
+    assert (export / "learning_curves_main.png").exists()
     finished = export / "oracle" / "seed0"
     assert (finished / "results.json").exists() and not (finished / "checkpoint").exists()
     assert json.loads((export / "oracle" / "seed2" / "history.json").read_text()) == curve[:1]
@@ -251,6 +277,23 @@ def test_the_shipped_grid_is_the_thesis_grid_and_its_methods_parse(monkeypatch):
         "oracle": ("env", 3, "none", "ego"),
     }
     assert set(grid.methods) == set(expected)
+    thesis = {  # the thesis's tables 5.2-5.4 and 5.7: mean score, success rate
+        "inest3-embedding": (0.73, 0.2245),
+        "inest3-state": (0.51, 0.0),
+        "inest3-none": (0.59, 0.1311),
+        "inest6-embedding": (0.40, 0.0),
+        "xirl-ego": (0.24, 0.0),
+        "xirl-allo": (0.16, 0.0),
+        "holdr": (0.05, 0.0),
+        "reds": (0.0, 0.0),
+    }
+    references = {name: method.reference for name, method in grid.methods.items() if method.reference}
+    assert {name: (ref.score, ref.success) for name, ref in references.items()} == thesis
+    assert {key: set(table.methods) for key, table in grid.tables.items()} == {
+        "subtasks": {"xirl-ego", "inest3-none", "inest3-embedding", "inest6-embedding"},
+        "intrinsic": {"inest3-none", "inest3-embedding", "inest3-state"},
+        "baselines": {"inest3-embedding", "xirl-ego", "xirl-allo", "holdr", "reds", "oracle"},
+    }
     assert {"inest3-embedding", "xirl-ego", "oracle"} <= set(ready)  # the committed model serves these
     for method in ready:
         settings = cells[f"{method}/seed2"]

@@ -182,12 +182,30 @@ METHOD_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")  # a method is a folder 
 
 
 @dataclass(frozen=True)
+class ReferenceResult:
+    """A published result to set beside a method's own (the thesis's, for the shipped grid): its
+    mean score and its success rate (a fraction), as the source reports them."""
+
+    score: float
+    success: float | None = None
+
+    def check(self, method: str) -> None:
+        for name in ("score", "success"):
+            value = getattr(self, name)
+            if value is None and name == "success":
+                continue
+            if type(value) not in (int, float) or not 0 <= value <= 1:
+                raise ValueError(f"method {method}: reference {name} must be a number in [0, 1], got {value!r}")
+
+
+@dataclass(frozen=True)
 class MethodConfig:
-    """One method of an experiment grid: the inest-train flags that make it and the reward model
-    folder it reads (none for the oracle)."""
+    """One method of an experiment grid: the inest-train flags that make it, the reward model
+    folder it reads (none for the oracle) and, optionally, a published result to compare with."""
 
     args: tuple[str, ...] = ()
     model: str | None = None
+    reference: ReferenceResult | None = None
 
     def check(self, name: str) -> None:
         if not METHOD_NAME.fullmatch(name):
@@ -199,6 +217,17 @@ class MethodConfig:
             raise ValueError(f"method {name}: the grid sets {taken} itself (the reward model folder is `model:`)")
         if self.model is not None and not isinstance(self.model, str):
             raise ValueError(f"method {name}: model must be a folder path, got {self.model!r}")
+        if self.reference is not None:
+            self.reference.check(name)
+
+
+@dataclass(frozen=True)
+class TableConfig:
+    """A comparison the report shows as its own table and learning-curve figure, like one of the
+    thesis's tables: a title and the grid's methods it compares."""
+
+    title: str
+    methods: tuple[str, ...]
 
 
 @dataclass(frozen=True)
@@ -215,6 +244,10 @@ class GridConfig:
     # a demonstration dataset: the report scores every method's reward model on its validation
     # split (reward MSE / MAE against the environment's reward); none: no quality table
     demos: str | None = None
+    # comparisons, each its own table and figure in the report (none: one table of every method)
+    tables: dict[str, TableConfig] = field(default_factory=dict)
+    # the column the methods' `reference` results are shown in, naming where they come from
+    reference_label: str = "reference"
 
     def __post_init__(self) -> None:
         if not self.methods:
@@ -232,6 +265,16 @@ class GridConfig:
                 raise ValueError(f"{name} must be a path, got {getattr(self, name)!r}")
         if self.demos is not None and (not isinstance(self.demos, str) or not self.demos):
             raise ValueError(f"demos must be a dataset folder, got {self.demos!r}")
+        for key, table in self.tables.items():
+            if not METHOD_NAME.fullmatch(key):
+                raise ValueError(f"table name {key!r} must be a file name (letters, digits, '.', '_', '-')")
+            if not isinstance(table.title, str) or not table.title:
+                raise ValueError(f"table {key}: title must be text, got {table.title!r}")
+            unknown = [method for method in table.methods if method not in self.methods]
+            if not table.methods or unknown:
+                raise ValueError(f"table {key}: methods must be some of the grid's {list(self.methods)}, got {unknown}")
+        if not isinstance(self.reference_label, str) or not self.reference_label:
+            raise ValueError(f"reference_label must be text, got {self.reference_label!r}")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -252,8 +295,26 @@ class GridConfig:
             args = method.get("args") or []
             if not isinstance(args, list):
                 raise ValueError(f"method {name}: args must be a list of inest-train flags and values")
-            parsed[str(name)] = MethodConfig(args=tuple(args), model=method.get("model"))
+            reference = method.get("reference")
+            if reference is not None:
+                if not isinstance(reference, dict):
+                    raise ValueError(f"method {name}: reference must be a mapping of score and success")
+                reject_unknown(reference, {f.name for f in fields(ReferenceResult)}, f"reference setting(s) of {name}")
+                if "score" not in reference:
+                    raise ValueError(f"method {name}: reference needs a score")
+                reference = ReferenceResult(**reference)
+            parsed[str(name)] = MethodConfig(args=tuple(args), model=method.get("model"), reference=reference)
         values["methods"] = parsed
+        tables = values.get("tables") or {}
+        if not isinstance(tables, dict):
+            raise ValueError("tables must be a mapping of table name to {title: ..., methods: [...]}")
+        parsed_tables = {}
+        for key, table in tables.items():
+            if not isinstance(table, dict) or not isinstance(table.get("methods"), list):
+                raise ValueError(f"table {key} must be a mapping of a title and a list of methods")
+            reject_unknown(table, {f.name for f in fields(TableConfig)}, f"setting(s) of table {key}")
+            parsed_tables[str(key)] = TableConfig(title=table.get("title", key), methods=tuple(table["methods"]))
+        values["tables"] = parsed_tables
         if "seeds" in values:
             seeds = values["seeds"]
             values["seeds"] = tuple(seeds) if isinstance(seeds, list) else (seeds,)

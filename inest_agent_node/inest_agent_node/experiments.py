@@ -16,8 +16,10 @@ log and the others go on; the exit status is 1 if any failed, 2 for bad input. A
 report is written.
 
 `inest-experiments report GRID.yaml|OUT` writes OUT/report.md (per method: mean score with a
-95 % bootstrap interval over seeds, success rate, 0/1/2/3-block shares; per run; cells not
-finished), OUT/summary.json and OUT/learning_curves.png (summary.py); with the grid's `demos`,
+95 % bootstrap interval over seeds, success rate, 0/1/2/3-block shares and the method's
+`reference` result if the grid gives one; per run; cells not finished), OUT/summary.json and
+OUT/learning_curves.png (summary.py); with the grid's `tables`, each comparison first as its own
+table with its figure OUT/learning_curves_<table>.png; with the grid's `demos`,
 also every method's reward error against the environment's reward on those held-out
 demonstrations (grid_quality.py). `--export DIR` then copies the report and every run's small
 files, without checkpoints, into DIR: a results folder to commit or share.
@@ -37,7 +39,7 @@ import subprocess
 import sys
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -47,9 +49,9 @@ from inest_common.files import read_json, read_run_file, write_atomic
 from inest_common.progress import track
 from inest_reward_node.runs import CONFIG_FILE
 
-from .config import GridConfig
+from .config import GridConfig, ReferenceResult
 from .grid_quality import QUALITY_DIR, quality_table
-from .summary import CURVES_FILE, SUMMARY_FILE, summarise, write_summary
+from .summary import CURVES_FILE, SUMMARY_FILE, plot_curves, summarise, write_summary
 from .train import CHECKPOINT_DIR, DIAGNOSTICS_FILE, HISTORY_FILE, RESULTS_FILE, parse_args
 
 GRID_FILE = "grid.json"
@@ -255,9 +257,47 @@ def percent(share: float) -> str:
     return f"{100 * share:.0f}"
 
 
+def reference_cell(reference: ReferenceResult | None) -> str:
+    if reference is None:
+        return ""
+    success = "" if reference.success is None else f", {100 * reference.success:.2f} %"
+    return f"{reference.score:.2f}{success}"
+
+
+def method_table(methods: list[str], summary: dict[str, Any], grid: GridConfig | None) -> list[str]:
+    """The Markdown table of `methods`' final evaluations across seeds, with the grid's reference
+    column when any of them has a reference result."""
+    references = {m: grid.methods[m].reference for m in methods if m in grid.methods} if grid else {}
+    label = f" {grid.reference_label} |" if grid and any(references.values()) else ""
+    lines = [
+        f"| method | seeds | steps | mean score [95 % CI over seeds] | success | 0 / 1 / 2 / 3 blocks |{label}",
+        "|---|---|---|---|---|---|" + ("---|" if label else ""),
+    ]
+    expected = len(grid.seeds) if grid else None
+    for method in methods:
+        entry = summary["methods"].get(method)
+        seeds = f"{entry['seeds'] if entry else 0}" + (f" of {expected}" if expected else "")
+        reference = f" {reference_cell(references.get(method))}".rstrip() + " |" if label else ""
+        if entry is None:
+            lines.append(f"| {method} | {seeds} | | not finished | | |{reference}")
+            continue
+        low, high = entry["mean_score_ci95"]
+        blocks = " / ".join(percent(share) for share in entry["blocks_share"])
+        lines.append(
+            f"| {method} | {seeds} | {format_steps(entry['steps'])} | {entry['mean_score']:.3f} [{low:.3f}, {high:.3f}]"
+            f" | {100 * entry['success_rate']:.1f} % | {blocks} % |{reference}"
+        )
+    return lines
+
+
+def table_curves_file(key: str) -> str:
+    return f"{Path(CURVES_FILE).stem}_{key}.png"
+
+
 def write_report(out: Path, grid: GridConfig | None) -> Path:
     """OUT/report.md, summary.json and learning_curves.png from the runs under OUT. Methods in the
-    grid's order (the given one, else OUT/grid.json's, else sorted), those without a finished run too."""
+    grid's order (the given one, else OUT/grid.json's, else sorted), those without a finished run
+    too; with the grid's `tables`, one table and learning-curve figure per comparison."""
     if grid is None and (out / GRID_FILE).exists():
         grid = GridConfig.from_dict(read_run_file(out / GRID_FILE, read_json)["grid"])
     summary = summarise(out)
@@ -268,29 +308,29 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
     quality_lines: list[str] = []
     if grid and grid.demos:
         quality_lines, summary["reward_quality"] = quality_table(out, methods, Path(grid.demos))
+    tables = grid.tables if grid else {}
+    if grid:
+        summary["tables"] = {key: asdict(table) for key, table in tables.items()}
+        summary["references"] = {
+            method: {"label": grid.reference_label, **asdict(spec.reference)}
+            for method, spec in grid.methods.items()
+            if spec.reference is not None
+        }
     write_summary(out, summary)
     lines = [
         f"# Experiment grid: {out}",
         "",
         "Final evaluations (each run's `final_eval_episodes` on the evaluation layouts); the mean",
         "score's 95 % bootstrap interval is over seeds; success: all three blocks in order.",
-        "",
-        "| method | seeds | steps | mean score [95 % CI over seeds] | success | 0 / 1 / 2 / 3 blocks |",
-        "|---|---|---|---|---|---|",
     ]
-    expected = len(grid.seeds) if grid else None
-    for method in methods:
-        entry = summary["methods"].get(method)
-        seeds = f"{entry['seeds'] if entry else 0}" + (f" of {expected}" if expected else "")
-        if entry is None:
-            lines.append(f"| {method} | {seeds} | | not finished | | |")
-            continue
-        low, high = entry["mean_score_ci95"]
-        blocks = " / ".join(percent(share) for share in entry["blocks_share"])
-        lines.append(
-            f"| {method} | {seeds} | {format_steps(entry['steps'])} | {entry['mean_score']:.3f} [{low:.3f}, {high:.3f}]"
-            f" | {100 * entry['success_rate']:.1f} % | {blocks} % |"
-        )
+    for key, table in tables.items():
+        figure = table_curves_file(key)
+        plot_curves(summary["runs"], out / figure, list(table.methods), table.title)
+        lines += ["", f"## {table.title}", "", *method_table(list(table.methods), summary, grid)]
+        lines += ["", f"![{table.title}: mean over seeds, band from the lowest to the highest seed]({figure})"]
+    if tables:
+        lines += ["", "## Every method"]
+    lines += ["", *method_table(methods, summary, grid)]
     lines += ["", "| run | steps | mean score | success | 0 / 1 / 2 / 3 blocks |", "|---|---|---|---|---|"]
     for row in sorted(summary["runs"], key=lambda row: (methods.index(row["method"]), row["run"])):
         name = f"{row['method']}/{row['run']}"
@@ -332,6 +372,8 @@ def export_results(out: Path, target: Path, runs: set[str]) -> None:
     for name in REPORT_FILES:
         if (out / name).is_file():
             copy(out / name, target / name)
+    for figure in out.glob(table_curves_file("*")):  # the report's figure per table
+        copy(figure, target / figure.name)
     for name in sorted(runs):  # what the report read: a run that evaluated since is left for the next export
         run, run_copy = out / name, target / name
         shutil.rmtree(run_copy, ignore_errors=True)

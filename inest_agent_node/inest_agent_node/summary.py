@@ -81,14 +81,17 @@ def summarise(root: Path) -> dict[str, Any]:
     return {"runs": rows, "methods": methods}
 
 
-def plot_curves(rows: list[dict[str, Any]], path: Path) -> None:
+def plot_curves(rows: list[dict[str, Any]], path: Path, methods: list[str] | None = None, title: str = "") -> None:
+    """Per method (`methods`, in that order; default: every method, sorted) the mean evaluation
+    score across finished seeds with a band from the lowest to the highest, and each run still
+    training dotted."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     figure, axis = plt.subplots(figsize=(7, 4))
-    for method in sorted({row["method"] for row in rows}):
+    for method in methods if methods is not None else sorted({row["method"] for row in rows}):
         finals = [np.asarray(row["curve"], dtype=float) for row in rows if row["method"] == method and row["final"]]
         if finals:
             length = min(len(curve) for curve in finals)
@@ -101,8 +104,9 @@ def plot_curves(rows: list[dict[str, Any]], path: Path) -> None:
                 curve = np.asarray(row["curve"], dtype=float)
                 axis.plot(curve[:, 0], curve[:, 1], ":", label=f"{method} {row['run']} (still training)")
     axis.set(xlabel="environment steps", ylabel="evaluation score (50 episodes)", ylim=(0, 1.02))
-    axis.set_title("mean over seeds; band: lowest to highest seed")
-    axis.legend(fontsize=8)
+    axis.set_title(f"{title}{': ' if title else ''}mean over seeds; band: lowest to highest seed", fontsize=10)
+    if axis.get_legend_handles_labels()[0]:
+        axis.legend(fontsize=8)
     figure.tight_layout()
     figure.savefig(path, dpi=100)
     plt.close(figure)

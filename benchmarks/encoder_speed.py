@@ -2,7 +2,7 @@
 and the time of one pretraining iteration (forward + backward + step on a full batch).
 
 Prints one JSON object. Pass encoder kinds to limit the run: `encoder_speed.py small_cnn`.
-The pretraining budget (issue 3) is 20 minutes on 2 cores for the default configuration.
+The pretraining budget is 20 minutes on 2 cores for the default configuration.
 """
 
 from __future__ import annotations

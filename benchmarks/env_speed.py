@@ -1,6 +1,6 @@
 """Environment steps per second on one core: physics only, and with a 96x96 egocentric image.
 
-Prints one JSON object. Target (issue 2): >= 3,000 steps/s with the image.
+Prints one JSON object. Target: >= 3,000 steps/s with the image.
 """
 
 from __future__ import annotations

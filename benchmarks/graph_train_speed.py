@@ -8,7 +8,7 @@ the learner in this process on a GraphVecEnv, its updates overlapping the simula
 (the agent node's default), simulators and reward node TRAINING_NICENESS steps nicer than it and
 on every CPU but the first (inest-launch's defaults while the agent trains). Rounds alternate
 between the runs so machine noise hits all alike.
-Target (issue 5): graph >= 0.9x in-process. Prints one JSON object.
+Target: graph >= 0.9x in-process. Prints one JSON object.
 `graph_train_speed.py [MODEL_FOLDER] [--no-overlap] [--graph-threads=N] [--nice=N] [--env-cpus=CPUS]`
 (default model runs/pretrain-main/model; --no-overlap: updates after each step, as in process;
 --nice=0: every node at the agent's priority; --env-cpus=all: nodes on any CPU, as inest-launch's

@@ -2,7 +2,7 @@
 
 Starts `inest-reward-node` as its own process on a private ROS domain, publishes 96 px rgb8
 frames from this process and times each frame from publishing to receiving its reward
-(DDS both ways, decoding, encoder, tracker, novelty). Targets (issue 5): >= 100 Hz sustained
+(DDS both ways, decoding, encoder, tracker, novelty). Targets: >= 100 Hz sustained
 and p99 <= 15 ms with the default encoder on 2 cores, the node's cost per frame within 1.3x of
 the bare encoder forward. Prints one JSON object. `reward_node_speed.py [MODEL_FOLDER]`
 (default runs/pretrain-main/model, which scripts/run_main.sh creates); further arguments go to

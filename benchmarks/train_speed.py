@@ -1,6 +1,6 @@
 """SAC training speed with the environment's reward and with the INEST reward, same settings.
 
-Prints one JSON object. Target (issue 4): INEST >= 0.8x the env-reward speed (the encoder
+Prints one JSON object. Target: INEST >= 0.8x the env-reward speed (the encoder
 must not be the bottleneck). Needs a reward model: `train_speed.py [MODEL_FOLDER]`
 (default runs/pretrain-main/model, which `scripts/run_main.sh` creates), optionally
 followed by the torch thread count (default: the training config's).

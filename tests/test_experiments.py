@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from inest_agent_node.experiments import main, plan
+from inest_agent_node.experiments import export_results, main, plan
 from small_training import small_train_config
 from test_summary import write_run
 
@@ -206,6 +206,11 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     assert (export / "learning_curves_main.png").exists()
     finished = export / "oracle" / "seed0"
     assert (finished / "results.json").exists() and not (finished / "checkpoint").exists()
+    assert json.loads((export / "oracle" / "seed2" / "history.json").read_text()) == curve[:1]
+    # a run that evaluated after the report read it is exported as the report read it
+    reported = json.loads((tmp_path / "summary.json").read_text())["runs"]
+    (tmp_path / "oracle" / "seed2" / "checkpoint" / "history.json").write_text(json.dumps(curve[:2]))
+    export_results(tmp_path, export, {f"{row['method']}/{row['run']}": row for row in reported})
     assert json.loads((export / "oracle" / "seed2" / "history.json").read_text()) == curve[:1]
     # paths under the checkout it ran in are relative in the copies: the same in any checkout
     config = tmp_path / "oracle" / "seed0" / "config.json"

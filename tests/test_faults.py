@@ -82,7 +82,8 @@ def test_bad_launcher_settings_are_one_line_and_exit_2(tmp_path):
         (["--env-cpus", "0-1000000000"], ["--env-cpus: CPU list '0-1000000000' names CPUs this process may not"]),
         (["--env-cpus", "one"], ["--env-cpus: 'one' is not a CPU list such as 1 or 0,2-3 (nor auto or all)"]),
         (["--env-cpus", "1-"], ["--env-cpus: '1-' is not a CPU list such as 1 or 0,2-3"]),
-        (["--nice", "20"], ["--nice must be between 0 and 19, got 20"]),
+        (["--nice", "20"], ["--nice must be an integer between 0 and 19, got 20"]),
+        (["--nice", "-1"], ["--nice must be an integer between 0 and 19, got -1"]),
     ]
     started = [(start(tmp_path, "inest-launch", "--out", str(tmp_path), *args), expected) for args, expected in cases]
     for process, expected in started:

@@ -51,16 +51,15 @@ from inest_reward_node.runs import CONFIG_FILE
 
 from .config import GridConfig, ReferenceResult
 from .grid_quality import QUALITY_DIR, quality_table
-from .summary import CURVES_FILE, SUMMARY_FILE, plot_curves, summarise, write_summary
+from .summary import CURVES_FILE, SUMMARY_FILE, plot_curves, read_run, summarise, write_summary
 from .train import CHECKPOINT_DIR, DIAGNOSTICS_FILE, HISTORY_FILE, RESULTS_FILE, parse_args
 
 GRID_FILE = "grid.json"
 REPORT_FILE = "report.md"
 # what `report --export` copies: the report's files, a run's own files, and while a run still
-# trains its learning curve and reward diagnostics so far (from its checkpoint)
+# trains its learning curve and reward diagnostics so far (from its checkpoint, export_results)
 REPORT_FILES = (REPORT_FILE, SUMMARY_FILE, CURVES_FILE, GRID_FILE)
 RUN_FILES = (CONFIG_FILE, RESULTS_FILE, "learning_curve.png", "coverage.png")
-TRAINING_FILES = (HISTORY_FILE, DIAGNOSTICS_FILE)
 EXECUTORS = ("local", "ray")
 PR_SET_PDEATHSIG = 1  # prctl(2)
 LIBC = ctypes.CDLL(None) if sys.platform == "linux" else None  # loaded here: the child only calls it
@@ -359,12 +358,14 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
     return out / REPORT_FILE
 
 
-def export_results(out: Path, target: Path, runs: set[str]) -> None:
-    """Copy OUT's report, the small files of the `runs` it covers (`method/run`) and each
-    method's reward-quality report into `target` (checkpoints, replay buffers and TensorBoard
-    logs stay behind); earlier copies of those runs and reports are replaced, not merged. Paths
-    under the working directory (the checkout the grid ran in) are written relative to it in
-    the JSON copies, so they read the same in any checkout."""
+def export_results(out: Path, target: Path, runs: dict[str, dict[str, Any]]) -> None:
+    """Copy OUT's report, the small files of the `runs` it covers (`method/run`: its row in
+    summary.json) and each method's reward-quality report into `target` (checkpoints, replay
+    buffers and TensorBoard logs stay behind); earlier copies of those runs and reports are
+    replaced, not merged. A run the report read while it trained is copied as the report read it
+    (its learning curve up to the report's step), even if it has evaluated or finished since.
+    Paths under the working directory (the checkout the grid ran in) are written relative to it
+    in the JSON copies, so they read the same in any checkout."""
     if target.resolve() == out.resolve():
         raise ValueError(f"--export {target} is the grid's own folder")
     target.mkdir(parents=True, exist_ok=True)
@@ -374,12 +375,18 @@ def export_results(out: Path, target: Path, runs: set[str]) -> None:
             copy(out / name, target / name)
     for figure in out.glob(table_curves_file("*")):  # the report's figure per table
         copy(figure, target / figure.name)
-    for name in sorted(runs):  # what the report read: a run that evaluated since is left for the next export
+    for name, row in sorted(runs.items()):
         run, run_copy = out / name, target / name
         shutil.rmtree(run_copy, ignore_errors=True)
         run_copy.mkdir(parents=True)
-        finished = (run / RESULTS_FILE).is_file()
-        files = RUN_FILES if finished else (CONFIG_FILE, *(f"{CHECKPOINT_DIR}/{f}" for f in TRAINING_FILES))
+        if row["final"]:
+            files: tuple[str, ...] = RUN_FILES
+        else:
+            files = (CONFIG_FILE, f"{CHECKPOINT_DIR}/{DIAGNOSTICS_FILE}")
+            now = read_run(run)  # its checkpoint's history, or the curve of a run finished since
+            if now is not None:
+                reported = [point for point in now["curve"] if point[0] <= row["steps"]]
+                (run_copy / HISTORY_FILE).write_text(json.dumps(reported) + "\n")
         for file in files:
             if (run / file).is_file():
                 copy(run / file, run_copy / Path(file).name)
@@ -443,7 +450,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"wrote {write_report(out, grid)}")
             if args.export:
                 summary = read_run_file(out / SUMMARY_FILE, read_json)
-                export_results(out, args.export, {f"{row['method']}/{row['run']}" for row in summary["runs"]})
+                export_results(out, args.export, {f"{row['method']}/{row['run']}": row for row in summary["runs"]})
                 print(f"exported the results to {args.export}")
             return 0
         if args.address and args.executor != "ray":

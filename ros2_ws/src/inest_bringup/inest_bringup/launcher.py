@@ -31,7 +31,15 @@ from inest_agent_node.train import RESULTS_FILE
 from inest_reward_node.runs import CONFIG_FILE
 
 from .recording import RecordingError, check_target
-from .supervisor import AUTO_CPUS, TRAINING_NICENESS, RespawnPolicy, Supervisor, environment_prefix, training_cpus
+from .supervisor import (
+    AUTO_CPUS,
+    TRAINING_NICENESS,
+    RespawnPolicy,
+    Supervisor,
+    environment_prefix,
+    parse_niceness,
+    training_cpus,
+)
 
 CONFIG_DIR_NAME = "config"
 PARAMS_FILE = "inest.params.yaml"
@@ -165,8 +173,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--respawn-delay", type=float, default=1.0, help="seconds before a restart (doubles)")
     parser.add_argument(
         "--nice",
-        type=int,
-        default=TRAINING_NICENESS,
+        default=str(TRAINING_NICENESS),
         help="while the agent trains, simulators and reward node run this much nicer (0: same priority)",
     )
     parser.add_argument(
@@ -181,8 +188,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         parser.error("--sims must be at least 1")
     if args.respawn < 0 or args.respawn_delay < 0:
         parser.error("--respawn and --respawn-delay must be >= 0")
-    if not 0 <= args.nice <= 19:
-        parser.error(f"--nice must be between 0 and 19, got {args.nice}")
+    try:
+        args.nice = parse_niceness(args.nice)
+    except ValueError as error:
+        parser.error(f"--nice {error}")
     try:
         args.environment_cpus = training_cpus(args.env_cpus)  # parsed once, None: no confinement
     except ValueError as error:

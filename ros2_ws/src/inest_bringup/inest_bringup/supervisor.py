@@ -52,6 +52,14 @@ def parse_cpus(text: str, usable: set[int]) -> set[int]:
     return cpus
 
 
+def parse_niceness(text: str) -> int:
+    """How much nicer simulators and reward node run while the agent trains: 0 (off) to 19, the
+    range nice(1) grants an unprivileged user above the default priority."""
+    if not (text.isdigit() and int(text) <= 19):
+        raise ValueError(f"must be an integer between 0 and 19, got {text}")
+    return int(text)
+
+
 def training_cpus(setting: str) -> set[int] | None:
     """The CPUs simulators and reward node are confined to while the agent trains, None for no
     confinement: AUTO_CPUS every CPU this process may use but the lowest (None with one CPU or

@@ -13,7 +13,14 @@ CPU but the first), as under `inest-launch`.
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
-from inest_bringup.supervisor import AUTO_CPUS, TRAINING_NICENESS, RespawnPolicy, environment_prefix, training_cpus
+from inest_bringup.supervisor import (
+    AUTO_CPUS,
+    TRAINING_NICENESS,
+    RespawnPolicy,
+    environment_prefix,
+    parse_niceness,
+    training_cpus,
+)
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction, SetEnvironmentVariable
 from launch.substitutions import LaunchConfiguration
@@ -35,13 +42,15 @@ def graph(context):
     prefix = {}
     if training:
         nice, env_cpus = value("nice"), value("env_cpus")
-        if not (nice.isdigit() and 0 <= int(nice) <= 19):
-            raise ValueError(f"nice:={nice}: must be an integer between 0 and 19")
+        try:
+            niceness = parse_niceness(nice)
+        except ValueError as error:
+            raise ValueError(f"nice:={nice}: {error}") from None
         try:
             cpus = training_cpus(env_cpus)
         except ValueError as error:
             raise ValueError(f"env_cpus:={env_cpus}: {error}") from None
-        command = environment_prefix(int(nice), cpus)
+        command = environment_prefix(niceness, cpus)
         prefix = {"prefix": " ".join(command)} if command else {}
     nodes = [
         Node(

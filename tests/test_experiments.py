@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from inest_agent_node.experiments import export_results, main, plan
+from inest_agent_node.experiments import export_results, main, plan, ranking
 from small_training import small_train_config
 from test_summary import write_run
 
@@ -169,6 +169,7 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     assert row.startswith("| oracle | 2 | 300 | 0.850 [0.800, 0.900] | 42.5 % | 0 / 0 / 100 / 0 % |")
     assert "| oracle/seed2 (training) | 100 | 0.100 (last evaluation) | | |" in lines
     assert (tmp_path / "summary.json").exists() and (tmp_path / "learning_curves.png").exists()
+    assert not any(line.startswith("Ranking") for line in lines)  # one finished method ranks nothing
     grid = tmp_path / "grid.yaml"
     grid.write_text(f"methods: {{oracle: {{}}, holdr: {{}}}}\nseeds: [0, 1, 2]\nout: {tmp_path}\n")
     assert main(["report", str(grid)]) == 0
@@ -219,6 +220,18 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     assert json.loads((finished / "config.json").read_text()) == {"model": "results/m", "other": "/elsewhere/m"}
     assert main(["report", str(tmp_path), "--export", str(tmp_path)]) == 2
     assert capsys.readouterr().err.startswith("inest-experiments: --export")
+
+
+def test_the_ranking_joins_neighbours_by_whether_their_intervals_overlap():
+    summary = {
+        "methods": {
+            "a": {"mean_score": 0.9, "mean_score_ci95": [0.85, 0.95]},
+            "b": {"mean_score": 0.8, "mean_score_ci95": [0.7, 0.86]},
+            "c": {"mean_score": 0.2, "mean_score_ci95": [0.1, 0.3]},
+        }
+    }
+    assert ranking(["c", "a", "b", "unfinished"], summary).startswith("Ranking by mean score: a ≈ b > c (")
+    assert ranking(["a", "unfinished"], summary) == ""
 
 
 def test_report_scores_each_learned_reward_on_the_grids_demonstrations(tmp_path, capsys, tiny_model, tiny_demos):

@@ -31,6 +31,7 @@ import argparse
 import contextlib
 import ctypes
 import io
+import itertools
 import json
 import shlex
 import shutil
@@ -289,6 +290,20 @@ def method_table(methods: list[str], summary: dict[str, Any], grid: GridConfig |
     return lines
 
 
+def ranking(methods: list[str], summary: dict[str, Any]) -> str:
+    """The finished `methods` from the highest mean score down, each pair joined by '>' where the
+    higher one's 95 % interval lies wholly above the next one's, '≈' where the two overlap."""
+    entries = summary["methods"]
+    finished = sorted((m for m in methods if m in entries), key=lambda m: -entries[m]["mean_score"])
+    if len(finished) < 2:
+        return ""
+    text = finished[0]
+    for higher, lower in itertools.pairwise(finished):
+        apart = entries[higher]["mean_score_ci95"][0] > entries[lower]["mean_score_ci95"][1]
+        text += f" {'>' if apart else '≈'} {lower}"
+    return f"Ranking by mean score: {text} ('>': the 95 % intervals are apart; '≈': they overlap)."
+
+
 def table_curves_file(key: str) -> str:
     return f"{Path(CURVES_FILE).stem}_{key}.png"
 
@@ -326,10 +341,14 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
         figure = table_curves_file(key)
         plot_curves(summary["runs"], out / figure, list(table.methods), table.title)
         lines += ["", f"## {table.title}", "", *method_table(list(table.methods), summary, grid)]
+        if order := ranking(list(table.methods), summary):
+            lines += ["", order]
         lines += ["", f"![{table.title}: mean over seeds, band from the lowest to the highest seed]({figure})"]
     if tables:
         lines += ["", "## Every method"]
     lines += ["", *method_table(methods, summary, grid)]
+    if order := ranking(methods, summary):
+        lines += ["", order]
     lines += ["", "| run | steps | mean score | success | 0 / 1 / 2 / 3 blocks |", "|---|---|---|---|---|"]
     for row in sorted(summary["runs"], key=lambda row: (methods.index(row["method"]), row["run"])):
         name = f"{row['method']}/{row['run']}"

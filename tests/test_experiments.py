@@ -144,6 +144,13 @@ def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, caps
         ("methods: {oracle: {reference: {rate: 0.2}}}\n", [], "unknown reference setting(s) of oracle ['rate']"),
         ("methods: {oracle: {}}\ntables: {t: {methods: [holdr]}}\n", [], "table t: methods must be some of"),
         ("methods: {oracle: {}}\ntables: {t: {methods: oracle}}\n", [], "table t must be a mapping of a title"),
+        ("methods: {oracle: {}}\ntables: {t: {methods: [[oracle]]}}\n", [], "table t: methods must be some of"),
+        ("methods: {oracle: {}}\ntables: {t: {methods: [oracle, oracle]}}\n", [], "table t: methods must differ"),
+        ("methods: {oracle: {}}\ntables: {t: {title: ' ', methods: [oracle]}}\n", [], "title must be one line"),
+        ("methods: {oracle: {}}\ntables: {5: {methods: [oracle]}}\n", [], "table name 5 must be a file name"),
+        ("methods: {oracle: {}}\ntables: 0\n", [], "tables must be a mapping of table name"),
+        ("methods: {oracle: {}}\nreference_label: a | b\n", [], "reference_label must be one line of text"),
+        ("methods: {oracle: {reference: {score: 0.5, 1: 2, x: 3}}}\n", [], "unknown reference setting(s) of oracle"),
     ],
 )
 def test_bad_grids_are_one_line_and_exit_2(tmp_path, capsys, monkeypatch, grid, extra, message):
@@ -191,9 +198,9 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     assert main(["report", str(grid)]) == 0
     report = (tmp_path / "report.md").read_text()
     table = report.split("## Oracle against HOLD-R")[1].split("## Every method")[0]
-    assert "| 0 / 1 / 2 / 3 blocks | thesis |" in table
+    assert "| 0 / 1 / 2 / 3 blocks | thesis: score, success |" in table
     assert table.index("| holdr | 0 of 3 | | not finished | | | |") < table.index("| oracle | 2 of 3 | 300 | 0.850")
-    assert "| 0.70, 22.45 % |" in table and "(learning_curves_main.png)" in table
+    assert "| 0.7, 22.45 % |" in table and "(learning_curves_main.png)" in table
     assert (tmp_path / "learning_curves_main.png").exists()
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["tables"] == {"main": {"title": "Oracle against HOLD-R", "methods": ["holdr", "oracle"]}}
@@ -201,7 +208,7 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     # the export: report and runs' small files, a training run's curve so far, no checkpoints
     export = tmp_path.with_name(f"{tmp_path.name}-export")
     (tmp_path / "oracle" / "seed0" / "checkpoint" / "replay_buffer.pkl").write_bytes(b"large")
-    assert main(["report", str(tmp_path), "--export", str(export)]) == 0
+    assert main(["report", str(grid), "--export", str(export)]) == 0
     assert (export / "report.md").read_text() == (tmp_path / "report.md").read_text()
     assert (export / "summary.json").exists() and (export / "learning_curves.png").exists()
     assert (export / "learning_curves_main.png").exists()
@@ -218,6 +225,8 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     config.write_text(json.dumps({"model": str(Path.cwd().resolve() / "results" / "m"), "other": "/elsewhere/m"}))
     assert main(["report", str(tmp_path), "--export", str(export)]) == 0
     assert json.loads((finished / "config.json").read_text()) == {"model": "results/m", "other": "/elsewhere/m"}
+    # that report had no tables: the table's figure is gone from the grid's folder and the export
+    assert not (tmp_path / "learning_curves_main.png").exists() and not (export / "learning_curves_main.png").exists()
     assert main(["report", str(tmp_path), "--export", str(tmp_path)]) == 2
     assert capsys.readouterr().err.startswith("inest-experiments: --export")
 
@@ -225,13 +234,15 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
 def test_the_ranking_joins_neighbours_by_whether_their_intervals_overlap():
     summary = {
         "methods": {
-            "a": {"mean_score": 0.9, "mean_score_ci95": [0.85, 0.95]},
-            "b": {"mean_score": 0.8, "mean_score_ci95": [0.7, 0.86]},
-            "c": {"mean_score": 0.2, "mean_score_ci95": [0.1, 0.3]},
+            "a": {"seeds": 3, "mean_score": 0.9, "mean_score_ci95": [0.85, 0.95]},
+            "b": {"seeds": 2, "mean_score": 0.8, "mean_score_ci95": [0.7, 0.86]},
+            "c": {"seeds": 3, "mean_score": 0.2, "mean_score_ci95": [0.1, 0.3]},
+            "one seed": {"seeds": 1, "mean_score": 0.5, "mean_score_ci95": [0.5, 0.5]},
         }
     }
-    assert ranking(["c", "a", "b", "unfinished"], summary).startswith("Ranking by mean score: a ≈ b > c (")
-    assert ranking(["a", "unfinished"], summary) == ""
+    order = ranking(["c", "a", "one seed", "b", "unfinished"], summary)
+    assert order.startswith("Ranking by mean score, methods with 2 or more seeds: a ≈ b > c (")
+    assert ranking(["a", "one seed", "unfinished"], summary) == ""
 
 
 def test_report_scores_each_learned_reward_on_the_grids_demonstrations(tmp_path, capsys, tiny_model, tiny_demos):
@@ -287,7 +298,7 @@ def test_the_shipped_grid_is_the_thesis_grid_and_its_methods_parse(monkeypatch):
         "inest3-embedding": ("inest", 3, "embedding", "ego"),
         "inest3-state": ("inest", 3, "state", "ego"),
         "inest3-none": ("inest", 3, "none", "ego"),
-        "inest6-embedding": ("inest", 6, "embedding", "ego"),
+        "inest6-none": ("inest", 6, "none", "ego"),
         "xirl-ego": ("xirl", 3, "none", "ego"),
         "xirl-allo": ("xirl", 3, "none", "allo"),
         "holdr": ("holdr", 3, "none", "ego"),
@@ -299,7 +310,7 @@ def test_the_shipped_grid_is_the_thesis_grid_and_its_methods_parse(monkeypatch):
         "inest3-embedding": (0.73, 0.2245),
         "inest3-state": (0.51, 0.0),
         "inest3-none": (0.59, 0.1311),
-        "inest6-embedding": (0.40, 0.0),
+        "inest6-none": (0.31, 0.0),
         "xirl-ego": (0.24, 0.0),
         "xirl-allo": (0.16, 0.0),
         "holdr": (0.05, 0.0),
@@ -308,7 +319,7 @@ def test_the_shipped_grid_is_the_thesis_grid_and_its_methods_parse(monkeypatch):
     references = {name: method.reference for name, method in grid.methods.items() if method.reference}
     assert {name: (ref.score, ref.success) for name, ref in references.items()} == thesis
     assert {key: set(table.methods) for key, table in grid.tables.items()} == {
-        "subtasks": {"xirl-ego", "inest3-none", "inest3-embedding", "inest6-embedding"},
+        "subtasks": {"xirl-ego", "inest3-none", "inest6-none"},
         "intrinsic": {"inest3-none", "inest3-embedding", "inest3-state"},
         "baselines": {"inest3-embedding", "xirl-ego", "xirl-allo", "holdr", "reds", "oracle"},
     }

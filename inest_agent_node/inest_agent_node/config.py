@@ -32,7 +32,7 @@ def reward_scheme(reward: str, subtasks: int) -> int:
 
 
 def reject_unknown(data: dict[str, Any], known: set[str], what: str) -> None:
-    unknown = sorted(set(data) - known)
+    unknown = sorted(set(data) - known, key=str)
     if unknown:
         raise ValueError(f"unknown {what} {unknown}; expected some of {sorted(known)}")
 
@@ -221,6 +221,12 @@ class MethodConfig:
             self.reference.check(name)
 
 
+def check_cell_text(text: object, what: str) -> None:
+    """Text the report prints in a heading or a table cell: one line, not blank, no '|'."""
+    if not isinstance(text, str) or not text.strip() or "\n" in text or "|" in text:
+        raise ValueError(f"{what} must be one line of text without '|', got {text!r}")
+
+
 @dataclass(frozen=True)
 class TableConfig:
     """A comparison the report shows as its own table and learning-curve figure, like one of the
@@ -266,15 +272,15 @@ class GridConfig:
         if self.demos is not None and (not isinstance(self.demos, str) or not self.demos):
             raise ValueError(f"demos must be a dataset folder, got {self.demos!r}")
         for key, table in self.tables.items():
-            if not METHOD_NAME.fullmatch(key):
+            if not isinstance(key, str) or not METHOD_NAME.fullmatch(key):
                 raise ValueError(f"table name {key!r} must be a file name (letters, digits, '.', '_', '-')")
-            if not isinstance(table.title, str) or not table.title:
-                raise ValueError(f"table {key}: title must be text, got {table.title!r}")
-            unknown = [method for method in table.methods if method not in self.methods]
+            check_cell_text(table.title, f"table {key}: title")
+            unknown = [method for method in table.methods if not isinstance(method, str) or method not in self.methods]
             if not table.methods or unknown:
                 raise ValueError(f"table {key}: methods must be some of the grid's {list(self.methods)}, got {unknown}")
-        if not isinstance(self.reference_label, str) or not self.reference_label:
-            raise ValueError(f"reference_label must be text, got {self.reference_label!r}")
+            if len(set(table.methods)) != len(table.methods):
+                raise ValueError(f"table {key}: methods must differ, got {list(table.methods)}")
+        check_cell_text(self.reference_label, "reference_label")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -305,15 +311,15 @@ class GridConfig:
                 reference = ReferenceResult(**reference)
             parsed[str(name)] = MethodConfig(args=tuple(args), model=method.get("model"), reference=reference)
         values["methods"] = parsed
-        tables = values.get("tables") or {}
-        if not isinstance(tables, dict):
+        tables = values.get("tables")
+        if tables is not None and not isinstance(tables, dict):
             raise ValueError("tables must be a mapping of table name to {title: ..., methods: [...]}")
         parsed_tables = {}
-        for key, table in tables.items():
+        for key, table in (tables or {}).items():
             if not isinstance(table, dict) or not isinstance(table.get("methods"), list):
                 raise ValueError(f"table {key} must be a mapping of a title and a list of methods")
             reject_unknown(table, {f.name for f in fields(TableConfig)}, f"setting(s) of table {key}")
-            parsed_tables[str(key)] = TableConfig(title=table.get("title", key), methods=tuple(table["methods"]))
+            parsed_tables[key] = TableConfig(title=table.get("title", str(key)), methods=tuple(table["methods"]))
         values["tables"] = parsed_tables
         if "seeds" in values:
             seeds = values["seeds"]

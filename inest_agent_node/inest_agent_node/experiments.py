@@ -260,15 +260,15 @@ def percent(share: float) -> str:
 def reference_cell(reference: ReferenceResult | None) -> str:
     if reference is None:
         return ""
-    success = "" if reference.success is None else f", {100 * reference.success:.2f} %"
-    return f"{reference.score:.2f}{success}"
+    success = "" if reference.success is None else f", {100 * reference.success:g} %"
+    return f"{reference.score:g}{success}"  # as precise as the source gives it
 
 
 def method_table(methods: list[str], summary: dict[str, Any], grid: GridConfig | None) -> list[str]:
     """The Markdown table of `methods`' final evaluations across seeds, with the grid's reference
     column when any of them has a reference result."""
     references = {m: grid.methods[m].reference for m in methods if m in grid.methods} if grid else {}
-    label = f" {grid.reference_label} |" if grid and any(references.values()) else ""
+    label = f" {grid.reference_label}: score, success |" if grid and any(references.values()) else ""
     lines = [
         f"| method | seeds | steps | mean score [95 % CI over seeds] | success | 0 / 1 / 2 / 3 blocks |{label}",
         "|---|---|---|---|---|---|" + ("---|" if label else ""),
@@ -291,17 +291,21 @@ def method_table(methods: list[str], summary: dict[str, Any], grid: GridConfig |
 
 
 def ranking(methods: list[str], summary: dict[str, Any]) -> str:
-    """The finished `methods` from the highest mean score down, each pair joined by '>' where the
-    higher one's 95 % interval lies wholly above the next one's, '≈' where the two overlap."""
+    """The `methods` with at least two finished seeds from the highest mean score down, each pair
+    joined by '>' where the higher one's 95 % interval lies wholly above the next one's, '≈' where
+    the two overlap (one seed has no interval to compare)."""
     entries = summary["methods"]
-    finished = sorted((m for m in methods if m in entries), key=lambda m: -entries[m]["mean_score"])
+    finished = sorted(
+        (m for m in methods if m in entries and entries[m]["seeds"] > 1), key=lambda m: -entries[m]["mean_score"]
+    )
     if len(finished) < 2:
         return ""
     text = finished[0]
     for higher, lower in itertools.pairwise(finished):
         apart = entries[higher]["mean_score_ci95"][0] > entries[lower]["mean_score_ci95"][1]
         text += f" {'>' if apart else '≈'} {lower}"
-    return f"Ranking by mean score: {text} ('>': the 95 % intervals are apart; '≈': they overlap)."
+    legend = "'>': the 95 % intervals are apart; '≈': they overlap"
+    return f"Ranking by mean score, methods with 2 or more seeds: {text} ({legend})."
 
 
 def table_curves_file(key: str) -> str:
@@ -330,16 +334,18 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
             for method, spec in grid.methods.items()
             if spec.reference is not None
         }
-    write_summary(out, summary)
+    write_summary(out, summary, methods)
     lines = [
         f"# Experiment grid: {out}",
         "",
         "Final evaluations (each run's `final_eval_episodes` on the evaluation layouts); the mean",
         "score's 95 % bootstrap interval is over seeds; success: all three blocks in order.",
     ]
+    for stale in set(out.glob(table_curves_file("*"))) - {out / table_curves_file(key) for key in tables}:
+        stale.unlink()  # a table the grid no longer has
     for key, table in tables.items():
         figure = table_curves_file(key)
-        plot_curves(summary["runs"], out / figure, list(table.methods), table.title)
+        plot_curves(summary["runs"], out / figure, list(table.methods), table.title, palette=methods)
         lines += ["", f"## {table.title}", "", *method_table(list(table.methods), summary, grid)]
         if order := ranking(list(table.methods), summary):
             lines += ["", order]
@@ -392,6 +398,8 @@ def export_results(out: Path, target: Path, runs: dict[str, dict[str, Any]]) -> 
     for name in REPORT_FILES:
         if (out / name).is_file():
             copy(out / name, target / name)
+    for figure in target.glob(table_curves_file("*")):  # an earlier export's, perhaps of other tables
+        figure.unlink()
     for figure in out.glob(table_curves_file("*")):  # the report's figure per table
         copy(figure, target / figure.name)
     for name, row in sorted(runs.items()):

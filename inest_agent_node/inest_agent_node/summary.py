@@ -81,28 +81,38 @@ def summarise(root: Path) -> dict[str, Any]:
     return {"runs": rows, "methods": methods}
 
 
-def plot_curves(rows: list[dict[str, Any]], path: Path, methods: list[str] | None = None, title: str = "") -> None:
+def plot_curves(
+    rows: list[dict[str, Any]],
+    path: Path,
+    methods: list[str] | None = None,
+    title: str = "",
+    palette: list[str] | None = None,
+) -> None:
     """Per method (`methods`, in that order; default: every method, sorted) the mean evaluation
     score across finished seeds with a band from the lowest to the highest, and each run still
-    training dotted."""
+    training dotted in its method's colour. A method's colour is its place in `palette` (default:
+    `methods`), so that figures of different subsets of one grid colour each method alike."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    methods = methods if methods is not None else sorted({row["method"] for row in rows})
+    palette = palette if palette is not None else methods
     figure, axis = plt.subplots(figsize=(7, 4))
-    for method in methods if methods is not None else sorted({row["method"] for row in rows}):
+    for method in methods:
+        color = f"C{palette.index(method) % 10}" if method in palette else None
         finals = [np.asarray(row["curve"], dtype=float) for row in rows if row["method"] == method and row["final"]]
         if finals:
             length = min(len(curve) for curve in finals)
             steps = finals[0][:length, 0]
             scores = np.stack([curve[:length, 1] for curve in finals])
-            (line,) = axis.plot(steps, scores.mean(axis=0), label=f"{method} ({len(finals)} seeds)")
-            axis.fill_between(steps, scores.min(axis=0), scores.max(axis=0), alpha=0.2, color=line.get_color())
+            axis.plot(steps, scores.mean(axis=0), color=color, label=f"{method} ({len(finals)} seeds)")
+            axis.fill_between(steps, scores.min(axis=0), scores.max(axis=0), alpha=0.2, color=color)
         for row in rows:
             if row["method"] == method and not row["final"]:
                 curve = np.asarray(row["curve"], dtype=float)
-                axis.plot(curve[:, 0], curve[:, 1], ":", label=f"{method} {row['run']} (still training)")
+                axis.plot(curve[:, 0], curve[:, 1], ":", color=color, label=f"{method} {row['run']} (still training)")
     axis.set(xlabel="environment steps", ylabel="evaluation score (50 episodes)", ylim=(0, 1.02))
     axis.set_title(f"{title}{': ' if title else ''}mean over seeds; band: lowest to highest seed", fontsize=10)
     if axis.get_legend_handles_labels()[0]:
@@ -112,9 +122,12 @@ def plot_curves(rows: list[dict[str, Any]], path: Path, methods: list[str] | Non
     plt.close(figure)
 
 
-def write_summary(root: Path, summary: dict[str, Any]) -> None:
-    """ROOT/summary.json (the runs without their curves) and ROOT/learning_curves.png."""
-    plot_curves(summary["runs"], root / CURVES_FILE)
+def write_summary(root: Path, summary: dict[str, Any], methods: list[str] | None = None) -> None:
+    """ROOT/summary.json (the runs without their curves) and ROOT/learning_curves.png (`methods`
+    in that order and colours; default: every method, sorted)."""
+    found = {row["method"] for row in summary["runs"]}
+    shown = [method for method in methods if method in found] if methods else None
+    plot_curves(summary["runs"], root / CURVES_FILE, shown, palette=methods)
     runs = [{key: value for key, value in row.items() if key != "curve"} for row in summary["runs"]]
     (root / SUMMARY_FILE).write_text(json.dumps({**summary, "runs": runs}, indent=2) + "\n")
 

@@ -245,6 +245,31 @@ def test_the_ranking_joins_neighbours_by_whether_their_intervals_overlap():
     assert ranking(["a", "one seed", "unfinished"], summary) == ""
 
 
+def test_report_shows_what_each_reward_paid_for_from_its_first_to_its_last_window(tmp_path):
+    curve = [[100, 0.1, 0.0]]
+    first = {"reward_per_step": -0.7, "shaping_per_step": -0.7, "bonus_per_step": 0.0, "intrinsic_per_step": 0.0}
+    first |= {"final_progress_mean": 0.04, "unearned_completion_rate": 0.0}
+    for seed, (shaping, unearned) in enumerate([(-0.1, 0.2), (-0.2, 0.3)]):
+        write_run(tmp_path, "hacked", seed, 0.0, curve)
+        results_file = tmp_path / "hacked" / f"seed{seed}" / "results.json"
+        last = first | {"reward_per_step": shaping, "shaping_per_step": shaping, "final_progress_mean": 0.0}
+        last |= {"unearned_completion_rate": unearned}
+        results_file.write_text(
+            json.dumps(json.loads(results_file.read_text()) | {"reward_diagnostics": [first, last]})
+        )
+    write_run(tmp_path, "oracle", 0, 0.9, curve)
+    oracle = tmp_path / "oracle" / "seed0" / "results.json"
+    oracle_window = {"reward_per_step": 0.1, "final_progress_mean": 1.0}
+    oracle.write_text(json.dumps(json.loads(oracle.read_text()) | {"reward_diagnostics": [oracle_window] * 2}))
+    assert main(["report", str(tmp_path)]) == 0
+    lines = (tmp_path / "report.md").read_text().splitlines()
+    # the reward rose while the blocks placed fell to none, and the stage claimed unplaced blocks
+    assert "| hacked | -0.7 → -0.15 | -0.7 → -0.15 | 0 → 0 | 0 → 0 | 0.04 → 0 | 0 % → 25 % |" in lines
+    assert "| oracle | 0.1 → 0.1 | | | | 1 → 1 | |" in lines  # the environment's reward has no parts
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert [row["reward_diagnostics"]["last"]["shaping_per_step"] for row in summary["runs"][:2]] == [-0.1, -0.2]
+
+
 def test_report_scores_each_learned_reward_on_the_grids_demonstrations(tmp_path, capsys, tiny_model, tiny_demos):
     curve = [[100, 0.1, 0.0]]
     runs = {

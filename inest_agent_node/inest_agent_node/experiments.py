@@ -45,6 +45,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 from inest_common.files import read_json, read_run_file, write_atomic
 from inest_common.progress import track
@@ -308,6 +309,49 @@ def ranking(methods: list[str], summary: dict[str, Any]) -> str:
     return f"Ranking by mean score, methods with 2 or more seeds: {text} ({legend})."
 
 
+# the reward diagnostics the report shows (diagnostics.py), as column title and key
+DIAGNOSTIC_COLUMNS = {
+    "reward / step": "reward_per_step",
+    "shaping / step": "shaping_per_step",
+    "bonus / step": "bonus_per_step",
+    "intrinsic / step": "intrinsic_per_step",
+    "blocks in order at episode end": "final_progress_mean",
+    "episodes with an unearned completion": "unearned_completion_rate",
+}
+
+
+def diagnostic(value: float, key: str) -> str:
+    return f"{percent(value)} %" if key.endswith("_rate") else f"{value:.3g}"
+
+
+def diagnostics_table(methods: list[str], rows: list[dict[str, Any]]) -> list[str]:
+    """Per method, the mean over its finished seeds of what its reward paid for in the first and in
+    the last diagnostics window of training: a reward the agent exploits shows its own reward
+    rising while the blocks placed fall."""
+    lines = [
+        "",
+        "What each reward paid for in training (each run's `reward_diagnostics`: its first → its last",
+        "window of training episodes, mean over finished seeds; an unearned completion: the reward's",
+        "stage claimed a block that had never been placed; blank: the reward has no such part).",
+        "",
+        f"| method | {' | '.join(DIAGNOSTIC_COLUMNS)} |",
+        "|---|" + "---|" * len(DIAGNOSTIC_COLUMNS),
+    ]
+    shown = False
+    for method in methods:
+        windows = [row["reward_diagnostics"] for row in rows if row["method"] == method and "reward_diagnostics" in row]
+        if not windows:
+            continue
+        cells = []
+        for key in DIAGNOSTIC_COLUMNS.values():
+            first, last = ([window[which].get(key) for window in windows] for which in ("first", "last"))
+            known = None not in first + last
+            cells.append(f"{diagnostic(np.mean(first), key)} → {diagnostic(np.mean(last), key)}" if known else "")
+        lines.append(f"| {method} |" + "".join(f" {cell} |" if cell else " |" for cell in cells))
+        shown = True
+    return lines if shown else []
+
+
 def table_curves_file(key: str) -> str:
     return f"{Path(CURVES_FILE).stem}_{key}.png"
 
@@ -372,6 +416,7 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
         missing = [f"{m}/seed{s}" for m in grid.methods for s in grid.seeds if f"{m}/seed{s}" not in started]
         if missing:
             lines += ["", f"Not started, or before their first evaluation: {', '.join(missing)}."]
+    lines += diagnostics_table(methods, [row for row in summary["runs"] if row["final"]])
     lines += quality_lines
     lines += [
         "",

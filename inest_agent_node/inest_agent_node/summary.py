@@ -1,7 +1,8 @@
 """`inest-summarise ROOT`: one table of the training runs under ROOT/<method>/<run>/, across seeds.
 
 Writes ROOT/summary.json (per run: method, seed, steps, mean_score, success_rate, blocks_share,
-from its 150-episode final evaluation, and training_s, its training wall-clock seconds; per
+from its 150-episode final evaluation, training_s, its training wall-clock seconds, and
+reward_diagnostics, the first and last window of its reward diagnostics (diagnostics.py); per
 method: the mean over seeds with a 95 % bootstrap interval) and ROOT/learning_curves.png (per
 method the mean evaluation score across seeds, with the band between the lowest and highest
 seed). A run still training (its checkpoint's
@@ -42,6 +43,11 @@ def read_run(run_dir: Path) -> dict[str, Any] | None:
         )
         if "wall_clock_s" in results:  # runs before the timing was recorded have none
             row["training_s"] = results["wall_clock_s"]["training"]
+        if results.get("reward_diagnostics"):  # what the reward paid for, first and last window
+            row["reward_diagnostics"] = {
+                "first": results["reward_diagnostics"][0],
+                "last": results["reward_diagnostics"][-1],
+            }
         row["curve"] = results["learning_curve"]
         return row
     histories = [path for path in (run_dir / CHECKPOINT_DIR / HISTORY_FILE, run_dir / HISTORY_FILE) if path.exists()]

@@ -242,7 +242,16 @@ def test_the_ranking_joins_neighbours_by_whether_their_intervals_overlap():
     }
     order = ranking(["c", "a", "one seed", "b", "unfinished"], summary)
     assert order.startswith("Ranking by mean score, methods with 2 or more seeds: a ≈ b > c (")
+    assert "Not neighbours" not in order  # a > c follows from the chain
     assert ranking(["a", "one seed", "unfinished"], summary) == ""
+    # overlap is not transitive: the pairs further apart that the chain misstates are named
+    summary["methods"]["b"]["mean_score_ci95"] = [0.25, 0.88]
+    order = ranking(["a", "b", "c"], summary)
+    assert "seeds: a ≈ b ≈ c (" in order and order.endswith("Not neighbours, where the chain reads otherwise: a > c.")
+    summary["methods"]["c"]["mean_score_ci95"] = [0.1, 0.86]
+    summary["methods"]["b"]["mean_score_ci95"] = [0.87, 0.88]
+    order = ranking(["a", "b", "c"], summary)
+    assert "seeds: a ≈ b > c (" in order and order.endswith("Not neighbours, where the chain reads otherwise: a ≈ c.")
 
 
 def test_report_shows_what_each_reward_paid_for_from_its_first_to_its_last_window(tmp_path):

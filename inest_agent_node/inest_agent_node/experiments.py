@@ -254,6 +254,11 @@ def format_steps(steps: list[int]) -> str:
     return ", ".join(f"{step // 1000}k" if step >= 1000 and step % 1000 == 0 else str(step) for step in steps)
 
 
+def markdown_row(cells: list[str]) -> str:
+    """One Markdown table row; an empty cell is written as `| |`, the same in every table."""
+    return "|" + "".join(f" {cell} |" if cell else " |" for cell in cells)
+
+
 def percent(share: float) -> str:
     return f"{100 * share:.0f}"
 
@@ -278,15 +283,16 @@ def method_table(methods: list[str], summary: dict[str, Any], grid: GridConfig |
     for method in methods:
         entry = summary["methods"].get(method)
         seeds = f"{entry['seeds'] if entry else 0}" + (f" of {expected}" if expected else "")
-        reference = f" {reference_cell(references.get(method))}".rstrip() + " |" if label else ""
+        reference = [reference_cell(references.get(method))] if label else []
         if entry is None:
-            lines.append(f"| {method} | {seeds} | | not finished | | |{reference}")
+            lines.append(markdown_row([method, seeds, "", "not finished", "", "", *reference]))
             continue
         low, high = entry["mean_score_ci95"]
         blocks = " / ".join(percent(share) for share in entry["blocks_share"])
+        score = f"{entry['mean_score']:.3f} [{low:.3f}, {high:.3f}]"
+        success = f"{100 * entry['success_rate']:.1f} %"
         lines.append(
-            f"| {method} | {seeds} | {format_steps(entry['steps'])} | {entry['mean_score']:.3f} [{low:.3f}, {high:.3f}]"
-            f" | {100 * entry['success_rate']:.1f} % | {blocks} % |{reference}"
+            markdown_row([method, seeds, format_steps(entry["steps"]), score, success, f"{blocks} %", *reference])
         )
     return lines
 
@@ -294,19 +300,31 @@ def method_table(methods: list[str], summary: dict[str, Any], grid: GridConfig |
 def ranking(methods: list[str], summary: dict[str, Any]) -> str:
     """The `methods` with at least two finished seeds from the highest mean score down, each pair
     joined by '>' where the higher one's 95 % interval lies wholly above the next one's, '≈' where
-    the two overlap (one seed has no interval to compare)."""
+    the two overlap (one seed has no interval to compare). Overlap is not transitive, so the pairs
+    further apart that the chain would misstate follow it: apart although only '≈' joins them
+    (a ≈ b ≈ c with a > c), or overlapping although a '>' lies between them."""
     entries = summary["methods"]
     finished = sorted(
         (m for m in methods if m in entries and entries[m]["seeds"] > 1), key=lambda m: -entries[m]["mean_score"]
     )
     if len(finished) < 2:
         return ""
-    text = finished[0]
-    for higher, lower in itertools.pairwise(finished):
-        apart = entries[higher]["mean_score_ci95"][0] > entries[lower]["mean_score_ci95"][1]
-        text += f" {'>' if apart else '≈'} {lower}"
+
+    def apart(higher: str, lower: str) -> bool:
+        return entries[higher]["mean_score_ci95"][0] > entries[lower]["mean_score_ci95"][1]
+
+    links = [apart(higher, lower) for higher, lower in itertools.pairwise(finished)]
+    text = finished[0] + "".join(
+        f" {'>' if link else '≈'} {lower}" for link, lower in zip(links, finished[1:], strict=True)
+    )
+    misread = [
+        f"{finished[i]} {'>' if apart(finished[i], finished[j]) else '≈'} {finished[j]}"
+        for i, j in itertools.combinations(range(len(finished)), 2)
+        if j > i + 1 and apart(finished[i], finished[j]) != any(links[i:j])
+    ]
     legend = "'>': the 95 % intervals are apart; '≈': they overlap"
-    return f"Ranking by mean score, methods with 2 or more seeds: {text} ({legend})."
+    beyond = f" Not neighbours, where the chain reads otherwise: {', '.join(misread)}." if misread else ""
+    return f"Ranking by mean score, methods with 2 or more seeds: {text} ({legend}).{beyond}"
 
 
 # the reward diagnostics the report shows (diagnostics.py), as column title and key
@@ -347,7 +365,7 @@ def diagnostics_table(methods: list[str], rows: list[dict[str, Any]]) -> list[st
             first, last = ([window[which].get(key) for window in windows] for which in ("first", "last"))
             known = None not in first + last
             cells.append(f"{diagnostic(np.mean(first), key)} → {diagnostic(np.mean(last), key)}" if known else "")
-        lines.append(f"| {method} |" + "".join(f" {cell} |" if cell else " |" for cell in cells))
+        lines.append(markdown_row([method, *cells]))
         shown = True
     return lines if shown else []
 
@@ -402,15 +420,15 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
     lines += ["", "| run | steps | mean score | success | 0 / 1 / 2 / 3 blocks |", "|---|---|---|---|---|"]
     for row in sorted(summary["runs"], key=lambda row: (methods.index(row["method"]), row["run"])):
         name = f"{row['method']}/{row['run']}"
+        steps = format_steps([row["steps"]])
         if row["final"]:
             blocks = " / ".join(percent(share) for share in row["blocks_share"])
-            lines.append(
-                f"| {name} | {format_steps([row['steps']])} | {row['mean_score']:.3f}"
-                f" | {100 * row['success_rate']:.1f} % | {blocks} % |"
-            )
+            success = f"{100 * row['success_rate']:.1f} %"
+            lines.append(markdown_row([name, steps, f"{row['mean_score']:.3f}", success, f"{blocks} %"]))
         else:
-            steps = format_steps([row["steps"]])
-            lines.append(f"| {name} (training) | {steps} | {row['mean_score']:.3f} (last evaluation) | | |")
+            lines.append(
+                markdown_row([f"{name} (training)", steps, f"{row['mean_score']:.3f} (last evaluation)", "", ""])
+            )
     if grid:
         started = {f"{row['method']}/{row['run']}" for row in summary["runs"]}
         missing = [f"{m}/seed{s}" for m in grid.methods for s in grid.seeds if f"{m}/seed{s}" not in started]

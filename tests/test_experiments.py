@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from inest_agent_node.experiments import export_results, main, plan, ranking
+from inest_agent_node.experiments import export_results, main, plan, ranking, rankings
 from small_training import small_train_config
 from test_summary import write_run
 
@@ -243,6 +243,15 @@ def test_the_ranking_joins_neighbours_by_whether_their_intervals_overlap():
     order = ranking(["c", "a", "one seed", "b", "unfinished"], summary)
     assert order.startswith("Ranking by mean score, methods with 2 or more seeds: a ≈ b > c (")
     assert "Not neighbours" not in order  # a > c follows from the chain
+    # then the same by the t intervals, wider with few seeds, on a line of its own
+    t_intervals = {"a": [0.8, 1.0], "b": [0.6, 0.9], "c": [0.0, 0.65], "one seed": [0.5, 0.5]}
+    for method, interval in t_intervals.items():
+        summary["methods"][method]["mean_score_t95"] = interval
+    assert rankings(["c", "a", "one seed", "b"], summary) == [
+        order,
+        "The same by 95 % Student t intervals, wider with few seeds: a ≈ b ≈ c."
+        " Not neighbours, where the chain reads otherwise: a > c.",
+    ]
     assert ranking(["a", "one seed", "unfinished"], summary) == ""
     # overlap is not transitive: the pairs further apart that the chain misstates are named
     summary["methods"]["b"]["mean_score_ci95"] = [0.25, 0.88]
@@ -279,7 +288,9 @@ def test_report_shows_what_each_reward_paid_for_from_its_first_to_its_last_windo
     assert [row["reward_diagnostics"]["last"]["shaping_per_step"] for row in summary["runs"][:2]] == [-0.1, -0.2]
 
 
-def test_report_scores_each_learned_reward_on_the_grids_demonstrations(tmp_path, capsys, tiny_model, tiny_demos):
+def test_report_scores_each_learned_reward_on_the_grids_demonstrations(
+    tmp_path, capsys, monkeypatch, tiny_model, tiny_demos
+):
     curve = [[100, 0.1, 0.0]]
     runs = {
         "oracle": small_train_config(reward="env"),
@@ -310,6 +321,28 @@ def test_report_scores_each_learned_reward_on_the_grids_demonstrations(tmp_path,
     grid.write_text(grid.read_text().replace(str(tiny_demos), str(other)))
     assert main(["report", str(grid)]) == 0 and report.stat().st_mtime_ns != kept
     assert json.loads((report.parent / "scored.json").read_text())["demos"] == str(other.resolve())
+    # the export, its paths relative to the checkout, reports from the checkout's root without the dataset
+    monkeypatch.chdir(tmp_path.parent)
+    export = Path(f"{tmp_path.name}-export")
+    assert main(["report", str(grid), "--export", str(export)]) == 0
+    assert (
+        json.loads((export / "inest3" / "quality" / "scored.json").read_text())["demos"]
+        == f"{tmp_path.name}/other-demos"
+    )
+    shutil.rmtree(other)
+    exported = export / "grid.yaml"
+    exported.write_text(
+        yaml.safe_dump(
+            {
+                "methods": {"oracle": {}, "inest3": {}},
+                "seeds": [0],
+                "out": str(export),
+                "demos": f"{tmp_path.name}/other-demos",
+            }
+        )
+    )
+    assert main(["report", str(exported)]) == 0
+    assert f"| inest3 | inest | 3 | 2 | {mse:.4f} |" in (export / "report.md").read_text()
     (tmp_path / "inest3" / "quality").rename(tmp_path / "scored")
     (tmp_path / "inest3" / "seed0" / "config.json").write_text(
         json.dumps(small_train_config(reward="inest", model=str(tmp_path / "gone")).to_dict())

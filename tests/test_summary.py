@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from inest_agent_node.summary import main
 
 
@@ -30,6 +31,8 @@ def test_summary_averages_finished_seeds_and_lists_runs_still_training(tmp_path,
     assert oracle["seeds"] == 2 and abs(oracle["mean_score"] - 0.85) < 1e-9
     low, high = oracle["mean_score_ci95"]
     assert 0.8 <= low <= 0.85 <= high <= 0.9
+    # the t interval, 0.85 ± t(0.975, 1 d.o.f.) 12.706 x 0.05, is far wider with two seeds
+    assert oracle["mean_score_t95"] == pytest.approx([0.85 - 0.6353, 0.85 + 0.6353], abs=1e-3)
     partial = [row for row in summary["runs"] if not row["final"]]
     assert partial == [{"method": "oracle", "run": "seed2", "seed": 2, "final": False, "steps": 100, "mean_score": 0.1}]
     assert (tmp_path / "learning_curves.png").exists() and "0.850" in capsys.readouterr().out

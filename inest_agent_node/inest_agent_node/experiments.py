@@ -297,12 +297,22 @@ def method_table(methods: list[str], summary: dict[str, Any], grid: GridConfig |
     return lines
 
 
-def ranking(methods: list[str], summary: dict[str, Any]) -> str:
+# the intervals the report ranks methods by: summary.json's key and the ranking line's wording
+RANKINGS = {
+    "mean_score_ci95": (
+        "Ranking by mean score, methods with 2 or more seeds: {} ('>': the 95 % bootstrap intervals are apart;"
+        " '≈': they overlap)."
+    ),
+    "mean_score_t95": "The same by 95 % Student t intervals, wider with few seeds: {}.",
+}
+
+
+def ranking(methods: list[str], summary: dict[str, Any], interval: str = "mean_score_ci95") -> str:
     """The `methods` with at least two finished seeds from the highest mean score down, each pair
-    joined by '>' where the higher one's 95 % interval lies wholly above the next one's, '≈' where
-    the two overlap (one seed has no interval to compare). Overlap is not transitive, so the pairs
-    further apart that the chain would misstate follow it: apart although only '≈' joins them
-    (a ≈ b ≈ c with a > c), or overlapping although a '>' lies between them."""
+    joined by '>' where the higher one's `interval` (a key of RANKINGS) lies wholly above the next
+    one's, '≈' where the two overlap (one seed has no interval to compare). Overlap is not
+    transitive, so the pairs further apart that the chain would misstate follow it: apart although
+    only '≈' joins them (a ≈ b ≈ c with a > c), or overlapping although a '>' lies between them."""
     entries = summary["methods"]
     finished = sorted(
         (m for m in methods if m in entries and entries[m]["seeds"] > 1), key=lambda m: -entries[m]["mean_score"]
@@ -311,7 +321,7 @@ def ranking(methods: list[str], summary: dict[str, Any]) -> str:
         return ""
 
     def apart(higher: str, lower: str) -> bool:
-        return entries[higher]["mean_score_ci95"][0] > entries[lower]["mean_score_ci95"][1]
+        return entries[higher][interval][0] > entries[lower][interval][1]
 
     links = [apart(higher, lower) for higher, lower in itertools.pairwise(finished)]
     text = finished[0] + "".join(
@@ -322,9 +332,13 @@ def ranking(methods: list[str], summary: dict[str, Any]) -> str:
         for i, j in itertools.combinations(range(len(finished)), 2)
         if j > i + 1 and apart(finished[i], finished[j]) != any(links[i:j])
     ]
-    legend = "'>': the 95 % intervals are apart; '≈': they overlap"
     beyond = f" Not neighbours, where the chain reads otherwise: {', '.join(misread)}." if misread else ""
-    return f"Ranking by mean score, methods with 2 or more seeds: {text} ({legend}).{beyond}"
+    return RANKINGS[interval].format(text) + beyond
+
+
+def rankings(methods: list[str], summary: dict[str, Any]) -> list[str]:
+    """The report's ranking lines under a table: by the bootstrap intervals, then by the t intervals."""
+    return [line for interval in RANKINGS if (line := ranking(methods, summary, interval))]
 
 
 # the reward diagnostics the report shows (diagnostics.py), as column title and key
@@ -409,13 +423,13 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
         figure = table_curves_file(key)
         plot_curves(summary["runs"], out / figure, list(table.methods), table.title, palette=methods)
         lines += ["", f"## {table.title}", "", *method_table(list(table.methods), summary, grid)]
-        if order := ranking(list(table.methods), summary):
+        for order in rankings(list(table.methods), summary):
             lines += ["", order]
         lines += ["", f"![{table.title}: mean over seeds, band from the lowest to the highest seed]({figure})"]
     if tables:
         lines += ["", "## Every method"]
     lines += ["", *method_table(methods, summary, grid)]
-    if order := ranking(methods, summary):
+    for order in rankings(methods, summary):
         lines += ["", order]
     lines += ["", "| run | steps | mean score | success | 0 / 1 / 2 / 3 blocks |", "|---|---|---|---|---|"]
     for row in sorted(summary["runs"], key=lambda row: (methods.index(row["method"]), row["run"])):

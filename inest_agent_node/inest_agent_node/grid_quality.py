@@ -7,7 +7,9 @@ min-max-normalised environment reward per demonstration, and the goal-similarity
 subtask goal's min-max cosine similarity against a Gaussian bump over the subtask's true
 frames), means over demonstrations. Each method's report is kept in OUT/<method>/quality/ with
 what it scored (`scored.json`: dataset, model, scheme, reward settings) and reused while those
-are the same; otherwise it is scored again.
+are the same (its paths read from the working directory, so the copy `report --export` makes,
+with paths relative to the checkout, is reused from the checkout's root without the dataset);
+otherwise it is scored again.
 """
 
 from __future__ import annotations
@@ -40,6 +42,11 @@ def scored_reward(run_config: dict[str, Any]) -> tuple[str, int, dict[str, Any]]
     return run_config["model"], reward_scheme(reward, run_config["subtasks"]), options
 
 
+def absolute_paths(scored: dict[str, Any]) -> dict[str, Any]:
+    """A kept `scored.json` with its dataset and model paths resolved from the working directory."""
+    return {**scored, **{key: str(Path(scored.get(key, "")).resolve()) for key in ("demos", "model")}}
+
+
 def method_quality(
     method_dir: Path, demos: Path, loaded: dict[tuple[str, int], list], progress_bar: bool = False
 ) -> dict[str, Any] | None:
@@ -62,7 +69,11 @@ def method_quality(
         "learned_reward": run_config["learned_reward"],
     }
     kept = folder / SCORED_FILE
-    if not (folder / REPORT_FILE).is_file() or not kept.is_file() or read_run_file(kept, read_json) != what:
+    if (
+        not (folder / REPORT_FILE).is_file()
+        or not kept.is_file()
+        or absolute_paths(read_run_file(kept, read_json)) != what
+    ):
         try:
             model = load_model(model_dir, view=run_config["view"], scheme=scheme)
             key = (model.view, model.image_size)

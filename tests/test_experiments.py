@@ -65,10 +65,10 @@ def kill_when_half_finished(runner: subprocess.Popen, out: Path, cells: list[str
     pytest.fail(f"the grid ended (status {runner.returncode}) before a cell was caught half-finished")
 
 
-def test_a_killed_grid_resumes_and_finishes_every_cell_exactly_once(tmp_path, capsys):
-    grid = write_grid(
-        tmp_path, {"oracle": {"args": ["--reward", "env"]}, "bare": {"args": ["--observation", "state"]}}, [0, 1]
-    )
+def test_a_killed_grid_resumes_and_finishes_every_cell_exactly_once(tmp_path, capsys, monkeypatch):
+    unused = str(tmp_path / "model")  # a path in the settings, as a learned reward's (env: unread)
+    methods = {"oracle": {"args": ["--reward", "env"], "model": unused}, "bare": {"args": ["--observation", "state"]}}
+    grid = write_grid(tmp_path, methods, [0, 1])
     out = tmp_path / "out"
     cells = [f"{method}/seed{seed}" for method in ("oracle", "bare") for seed in (0, 1)]
     command = [sys.executable, "-m", "inest_agent_node.experiments", "run", str(grid), "--parallel", "1"]
@@ -103,6 +103,13 @@ def test_a_killed_grid_resumes_and_finishes_every_cell_exactly_once(tmp_path, ca
         assert any(line.startswith(f"| {method} | 2 of 2 | 400 | ") and " [" in line for line in report.splitlines())
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["methods"]) == {"oracle", "bare"} and (out / "learning_curves.png").exists()
+    # its export, paths relative to the checkout and no checkpoints, copied back continues the grid
+    monkeypatch.chdir(tmp_path)
+    assert main(["report", str(grid), "--export", "export"]) == 0
+    shutil.rmtree(out)
+    shutil.copytree(tmp_path / "export", out)
+    assert main(["run", str(grid), "--parallel", "1"]) == 0
+    assert "4 cells, 4 finished, 0 to train" in capsys.readouterr().out
 
 
 def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, capsys):

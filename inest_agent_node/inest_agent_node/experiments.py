@@ -139,17 +139,23 @@ def plan(grid: GridConfig, selected: list[str], workdir: Path) -> list[Cell]:
 
 def record_grid(grid: GridConfig, cells: list[Cell], out: Path) -> None:
     """Write OUT/grid.json, keeping the cells an earlier run of a subset of methods recorded;
-    refuse a cell whose run folder was made with other settings."""
+    refuse a cell whose run folder was made with other settings. Settings are compared with paths
+    under the working directory relative to it, so an export copied back to OUT (`cp -r
+    results/grid runs/grid`) continues as the grid it came from."""
     path = out / GRID_FILE
     recorded = read_run_file(path, read_json)["cells"] if path.exists() else {}
+    root = Path.cwd().resolve()
     for cell in cells:
         before = recorded.get(cell.name)
-        if before is not None and (cell.run_dir / CONFIG_FILE).exists() and before["config"] != cell.settings:
-            differing = sorted(key for key in cell.settings if before["config"].get(key) != cell.settings[key])
-            raise ValueError(
-                f"{cell.run_dir} was trained with other settings ({', '.join(differing)}): "
-                "remove that folder or pick another `out`"
-            )
+        if before is not None and (cell.run_dir / CONFIG_FILE).exists():
+            earlier, settings = checkout_relative(before["config"], root), checkout_relative(cell.settings, root)
+            if differing := sorted(
+                key for key in earlier.keys() | settings.keys() if earlier.get(key) != settings.get(key)
+            ):
+                raise ValueError(
+                    f"{cell.run_dir} was trained with other settings ({', '.join(differing)}): "
+                    "remove that folder or pick another `out`"
+                )
         recorded[cell.name] = {"command": ["inest-train", *cell.train_args], "config": cell.settings}
     document = {"grid": grid.to_dict(), "cells": recorded}
     out.mkdir(parents=True, exist_ok=True)
@@ -499,23 +505,24 @@ def export_results(out: Path, target: Path, runs: dict[str, dict[str, Any]]) -> 
         shutil.copytree(quality, target / quality.relative_to(out), copy_function=copy)
 
 
+def checkout_relative(value: Any, root: Path) -> Any:
+    """`value` (parsed JSON) with every string naming a path under `root` made relative to it."""
+    if isinstance(value, str):
+        return value.removeprefix(f"{root}/")
+    if isinstance(value, list):
+        return [checkout_relative(item, root) for item in value]
+    if isinstance(value, dict):
+        return {key: checkout_relative(item, root) for key, item in value.items()}
+    return value
+
+
 def copy_relative(source: Path | str, destination: Path | str, root: Path) -> None:
     """shutil.copy2, except that a JSON file's strings naming paths under `root` become relative to it."""
     if Path(source).suffix != ".json":
         shutil.copy2(source, destination)
         return
-    prefix = f"{root}/"
-
-    def relative(value: Any) -> Any:
-        if isinstance(value, str):
-            return value.removeprefix(prefix)
-        if isinstance(value, list):
-            return [relative(item) for item in value]
-        if isinstance(value, dict):
-            return {key: relative(item) for key, item in value.items()}
-        return value
-
-    Path(destination).write_text(json.dumps(relative(json.loads(Path(source).read_text())), indent=2) + "\n")
+    document = checkout_relative(json.loads(Path(source).read_text()), root)
+    Path(destination).write_text(json.dumps(document, indent=2) + "\n")
 
 
 def positive(text: str) -> int:

@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 import yaml
-from inest_common.files import read_json, read_run_file, write_atomic
+from inest_common.files import checkout_relative, read_json, read_run_file, write_atomic
 from inest_common.progress import track
 from inest_reward_node.runs import CONFIG_FILE
 
@@ -503,17 +503,6 @@ def export_results(out: Path, target: Path, runs: dict[str, dict[str, Any]]) -> 
     for quality in out.glob(f"*/{QUALITY_DIR}"):
         shutil.rmtree(target / quality.relative_to(out), ignore_errors=True)
         shutil.copytree(quality, target / quality.relative_to(out), copy_function=copy)
-
-
-def checkout_relative(value: Any, root: Path) -> Any:
-    """`value` (parsed JSON) with every string naming a path under `root` made relative to it."""
-    if isinstance(value, str):
-        return value.removeprefix(f"{root}/")
-    if isinstance(value, list):
-        return [checkout_relative(item, root) for item in value]
-    if isinstance(value, dict):
-        return {key: checkout_relative(item, root) for key, item in value.items()}
-    return value
 
 
 def copy_relative(source: Path | str, destination: Path | str, root: Path) -> None:

@@ -7,9 +7,9 @@ min-max-normalised environment reward per demonstration, and the goal-similarity
 subtask goal's min-max cosine similarity against a Gaussian bump over the subtask's true
 frames), means over demonstrations. Each method's report is kept in OUT/<method>/quality/ with
 what it scored (`scored.json`: dataset, model, scheme, reward settings) and reused while those
-are the same (its paths read from the working directory, so the copy `report --export` makes,
-with paths relative to the checkout, is reused from the checkout's root without the dataset);
-otherwise it is scored again.
+are the same (compared with paths relative to the working directory, so the copy `report
+--export` makes, with paths relative to the checkout, is reused from the checkout's root without
+the dataset); otherwise it is scored again.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from inest_common.files import read_json, read_run_file, write_atomic
+from inest_common.files import checkout_relative, read_json, read_run_file, write_atomic
 from inest_reward_node.data import load_demos
 from inest_reward_node.model import ModelError, load_model
 from inest_reward_node.quality import REPORT_FILE, evaluate, load_stage_frames
@@ -40,11 +40,6 @@ def scored_reward(run_config: dict[str, Any]) -> tuple[str, int, dict[str, Any]]
         return None
     options = {"config": RewardConfig(**run_config["learned_reward"])}
     return run_config["model"], reward_scheme(reward, run_config["subtasks"]), options
-
-
-def absolute_paths(scored: dict[str, Any]) -> dict[str, Any]:
-    """A kept `scored.json` with its dataset and model paths resolved from the working directory."""
-    return {**scored, **{key: str(Path(scored.get(key, "")).resolve()) for key in ("demos", "model")}}
 
 
 def method_quality(
@@ -69,10 +64,11 @@ def method_quality(
         "learned_reward": run_config["learned_reward"],
     }
     kept = folder / SCORED_FILE
+    root = Path.cwd().resolve()
     if (
         not (folder / REPORT_FILE).is_file()
         or not kept.is_file()
-        or absolute_paths(read_run_file(kept, read_json)) != what
+        or checkout_relative(read_run_file(kept, read_json), root) != checkout_relative(what, root)
     ):
         try:
             model = load_model(model_dir, view=run_config["view"], scheme=scheme)

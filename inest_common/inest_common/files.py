@@ -1,6 +1,7 @@
 """File helpers shared by the packages (datasets here, the reward model and pretraining runs in
 inest_reward_node, training checkpoints in inest_agent_node): atomic writes, sha256 of a file,
-and JSON documents that declare their format and version. Standard library only."""
+JSON documents that declare their format and version, and paths in JSON made relative to the
+checkout, so that results read the same in any checkout. Standard library only."""
 
 from __future__ import annotations
 
@@ -32,6 +33,17 @@ def read_run_file(path: Path, read: Callable[[Path], T]) -> T:
         return read(path)
     except UNREADABLE as reason:
         raise RunFileError(f"cannot read {path}: {reason or type(reason).__name__}") from reason
+
+
+def checkout_relative(value: Any, root: Path) -> Any:
+    """`value` (parsed JSON) with every string naming a path under `root` made relative to it."""
+    if isinstance(value, str):
+        return value.removeprefix(f"{root}/")
+    if isinstance(value, list):
+        return [checkout_relative(item, root) for item in value]
+    if isinstance(value, dict):
+        return {key: checkout_relative(item, root) for key, item in value.items()}
+    return value
 
 
 def read_json(path: Path) -> Any:

@@ -14,10 +14,10 @@ import time
 
 import numpy as np
 import torch
-from inest_reward_node.encoders import EncoderConfig, build_encoder, frames_to_tensor
-from inest_reward_node.holdr import HoldR, HoldRConfig
-from inest_reward_node.pretrain import PretrainConfig
-from inest_reward_node.tcc import tcc_loss
+from inest_reward_node.learning.losses import tcc_loss
+from inest_reward_node.learning.pretrain import PretrainConfig
+from inest_reward_node.runtime.encoders import EncoderConfig, build_encoder, frames_to_tensor
+from inest_reward_node.runtime.holdr import HoldR, HoldRConfig
 
 IMAGE_SIZE = 96
 

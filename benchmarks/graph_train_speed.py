@@ -30,7 +30,7 @@ from inest_agent_node.graph_env import GraphVecEnv
 from inest_agent_node.train import Trainer
 from inest_bringup.launcher import graph_environment
 from inest_bringup.supervisor import AUTO_CPUS, TRAINING_NICENESS, environment_prefix, format_cpus, training_cpus
-from inest_reward_node.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 from train_speed import RANDOM_STEPS, ROUND_STEPS, ROUNDS, WARM_UP_STEPS, median_speeds, paired_ratio, trainer_speeds
 
 from inest_agent_node.config import SacConfig, TrainConfig

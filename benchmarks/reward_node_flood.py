@@ -27,7 +27,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from inest_bringup.launcher import graph_environment
 from inest_interfaces.msg import Reward
-from inest_reward_node.images import encode_rgb
+from inest_reward_node.runtime.images import encode_rgb
 from sensor_msgs.msg import Image
 
 CAMERA_HZ, BURST_HZ = 30.0, 1000.0

@@ -25,7 +25,7 @@ import torch
 from diagnostic_msgs.msg import DiagnosticArray
 from inest_bringup.launcher import graph_environment
 from inest_interfaces.msg import Reward
-from inest_reward_node.model import load_model
+from inest_reward_node.runtime.model import load_model
 from sensor_msgs.msg import Image
 
 from inest_sim_node import EnvConfig, SweepToTopEnv

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import torch
 from inest_agent_node.train import Trainer
-from inest_reward_node.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 
 from inest_agent_node.config import SacConfig, TrainConfig
 

@@ -25,8 +25,8 @@ setup(
     entry_points={
         "console_scripts": [
             "inest-reward-node = inest_reward_node.node:main",
-            "inest-pretrain = inest_reward_node.pretrain:main",
-            "inest-reward-quality = inest_reward_node.quality:main",
+            "inest-pretrain = inest_reward_node.learning.pretrain:main",
+            "inest-reward-quality = inest_reward_node.learning.quality:main",
         ],
     },
 )

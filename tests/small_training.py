@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from inest_reward_node.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 
 from inest_agent_node.config import SacConfig, TrainConfig
 

@@ -11,9 +11,9 @@ from inest_agent_node.envs import LEARNED_STAGE, LearnedRewardVecEnv, make_vec_e
 from inest_agent_node.evaluate import evaluate, format_table
 from inest_agent_node.learners import RewardBatchingMixin
 from inest_agent_node.train import Trainer
-from inest_reward_node.intrinsic import IntrinsicConfig
-from inest_reward_node.model import load_model
-from inest_reward_node.rewards import RewardScorer
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.model import load_model
+from inest_reward_node.runtime.rewards import RewardScorer
 from inest_sim_node.expert import ScriptedExpert
 from small_training import small_train_config
 from stable_baselines3.common.vec_env import VecEnvWrapper

@@ -5,8 +5,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import torch
-from inest_reward_node.data import AugmentConfig, augment_videos, stratified_indices
-from inest_reward_node.encoders import frames_to_tensor
+from inest_reward_node.learning.data import AugmentConfig, augment_videos, stratified_indices
+from inest_reward_node.runtime.encoders import frames_to_tensor
 from inest_sim_node.render import PALETTE
 
 BLOCKS = ("red", "blue", "yellow")

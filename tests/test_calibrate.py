@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from inest_reward_node.calibrate import (
+from inest_reward_node.learning.calibrate import (
     CalibrationConfig,
     calibrate_thresholds,
     goal_embeddings,
@@ -14,10 +14,10 @@ from inest_reward_node.calibrate import (
     subtask_windows,
     xirl_distance_scale,
 )
-from inest_reward_node.data import load_demos
-from inest_reward_node.model import load_model
-from inest_reward_node.rewards import subtask_rewards
-from inest_reward_node.shaping import distance_reward
+from inest_reward_node.learning.data import load_demos
+from inest_reward_node.runtime.methods import subtask_rewards
+from inest_reward_node.runtime.model import load_model
+from inest_reward_node.runtime.shaping import distance_reward
 
 
 def test_goal_embeddings_average_the_frames_where_subtasks_end():

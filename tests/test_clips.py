@@ -10,10 +10,10 @@ import shutil
 import numpy as np
 import pytest
 from inest_agent_node.train import Trainer
-from inest_reward_node.clips import Clip, ClipError, load_clips, save_clips
-from inest_reward_node.model import load_model
-from inest_reward_node.pretrain import main as pretrain_main
-from inest_reward_node.pretrain import pretrain
+from inest_reward_node.learning.clips import Clip, ClipError, load_clips, save_clips
+from inest_reward_node.learning.pretrain import main as pretrain_main
+from inest_reward_node.learning.pretrain import pretrain
+from inest_reward_node.runtime.model import load_model
 from small_training import small_train_config
 
 from inest_agent_node import record_clips

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from inest_reward_node.coverage import measure_coverage, plot_coverage, unique_states
+from inest_reward_node.learning.coverage import measure_coverage, plot_coverage, unique_states
 
 
 def lattice_cloud(side: int, repeats: int, dim: int = 8) -> np.ndarray:

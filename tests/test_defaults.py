@@ -9,9 +9,9 @@ from typing import Any
 
 import yaml
 from inest_agent_node.node import AgentNodeConfig, agent_train_defaults
-from inest_reward_node.intrinsic import IntrinsicConfig
 from inest_reward_node.node import RewardNodeConfig
-from inest_reward_node.stages import RewardConfig
+from inest_reward_node.runtime.config import RewardConfig
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 from inest_sim_node.node import SimNodeConfig
 
 from inest_agent_node.config import TrainConfig

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 import torch
-from inest_reward_node.encoders import EncoderConfig, ResNet18, build_encoder, frames_to_tensor, resize_frames
+from inest_reward_node.runtime.encoders import EncoderConfig, ResNet18, build_encoder, frames_to_tensor, resize_frames
 
 
 def test_resnet18_has_the_standard_layout():

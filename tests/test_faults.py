@@ -25,7 +25,7 @@ from inest_bringup.launcher import graph_environment
 from inest_bringup.monitor import GraphMonitor
 from inest_bringup.supervisor import TRAINING_NICENESS, Outcome, RespawnPolicy, Supervisor, training_cpus
 from inest_interfaces.msg import Reward
-from inest_reward_node.serving import StreamScorer
+from inest_reward_node.runtime.serving import StreamScorer
 from rosgraph import BIN, fresh_domain
 from test_agent import tiny_config
 from test_graph import TINY_AGENT, count_steps, reward_node_args, sim_node_args

@@ -16,10 +16,10 @@ import pytest
 import rclpy
 from inest_interfaces.msg import Action, EpisodeStatus, State
 from inest_interfaces.srv import ResetEpisode
-from inest_reward_node.data import load_demos
-from inest_reward_node.intrinsic import IntrinsicConfig
-from inest_reward_node.model import load_model
-from inest_reward_node.rewards import RewardScorer, replay
+from inest_reward_node.learning.data import load_demos
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.model import load_model
+from inest_reward_node.runtime.rewards import RewardScorer, replay
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosgraph import BIN, fresh_domain

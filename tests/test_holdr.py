@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from inest_reward_node.data import load_demos
-from inest_reward_node.model import ModelError, load_model
-from inest_reward_node.rewards import replay
+from inest_reward_node.learning.data import load_demos
+from inest_reward_node.runtime.model import ModelError, load_model
+from inest_reward_node.runtime.rewards import replay
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from inest_reward_node.images import ImageRejected, decode_image, encode_rgb, fit_square
+from inest_reward_node.runtime.images import ImageRejected, decode_image, encode_rgb, fit_square
 
 FRAME = np.random.default_rng(0).integers(0, 256, (5, 7, 3), dtype=np.uint8)
 

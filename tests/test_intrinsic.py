@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from inest_reward_node.intrinsic import IntrinsicConfig, NoveltyMemory
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig, NoveltyMemory
 
 
 def test_fifo_keeps_the_newest_vectors_in_order():

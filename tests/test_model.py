@@ -9,10 +9,10 @@ import shutil
 import numpy as np
 import pytest
 import torch
-from inest_reward_node.data import load_demos
-from inest_reward_node.encoders import EncoderConfig
-from inest_reward_node.model import MODEL_FILE, WEIGHTS_FILE, ModelError, load_model
-from inest_reward_node.pretrain import STATE_FILE, Pretrainer, dataset_hash, pretrain
+from inest_reward_node.learning.data import load_demos
+from inest_reward_node.learning.pretrain import STATE_FILE, Pretrainer, dataset_hash, pretrain
+from inest_reward_node.runtime.encoders import EncoderConfig
+from inest_reward_node.runtime.model import MODEL_FILE, WEIGHTS_FILE, ModelError, load_model
 from safetensors import safe_open
 
 
@@ -29,7 +29,7 @@ def test_model_round_trip_keeps_weights_and_calibration(tiny_tcc_run):
     trainer = Pretrainer(config, run_dir, resume=True)  # the training state holds the same weights
     demo = load_demos(config.dataset, "valid", "ego", 48, limit=1, progress_bar=False)[0]
     with torch.no_grad():
-        from inest_reward_node.encoders import frames_to_tensor
+        from inest_reward_node.runtime.encoders import frames_to_tensor
 
         expected = trainer.network.eval()(frames_to_tensor(demo.frames)).numpy()
     np.testing.assert_allclose(model.embed(demo.frames), expected, rtol=1e-5, atol=1e-5)
@@ -121,7 +121,7 @@ def test_resnet18_models_train_save_and_load(tiny_tcc_run, tmp_path):
 
 
 def test_pretraining_options_for_augmentation_and_the_device(tiny_tcc_run, tmp_path, capsys):
-    from inest_reward_node.pretrain import main, parse_args
+    from inest_reward_node.learning.pretrain import main, parse_args
 
     dataset = tiny_tcc_run[0].dataset
     config, _ = parse_args([dataset, "--out", "x", "--augment-shift", "8", "--augment-brightness", "0.4"])

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from inest_reward_node.quality import ground_truth_gaussian, min_max, rank_correlation
+from inest_reward_node.learning.quality import ground_truth_gaussian, min_max, rank_correlation
 
 
 def test_report_end_to_end(tiny_tcc_run, tmp_path):

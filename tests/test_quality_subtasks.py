@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from inest_reward_node.clips import Clip
-from inest_reward_node.data import load_demos
-from inest_reward_node.model import load_model
-from inest_reward_node.quality import (
+from inest_reward_node.learning.clips import Clip
+from inest_reward_node.learning.data import load_demos
+from inest_reward_node.learning.quality import (
     ScorerOptionError,
     completion_lags,
     demo_quality,
@@ -21,10 +20,11 @@ from inest_reward_node.quality import (
     switch_dips,
     within_subtask_spearman,
 )
-from inest_reward_node.stages import RewardConfig
+from inest_reward_node.runtime import rewards
+from inest_reward_node.runtime.config import RewardConfig
+from inest_reward_node.runtime.model import load_model
 from inest_sim_node.expert import WRONG_ORDER, ScriptedExpert
 
-from inest_reward_node import rewards
 from inest_sim_node import EnvConfig, SweepToTopEnv
 
 
@@ -175,8 +175,8 @@ def test_parse_scorer_option():
 def test_scorer_arguments_build_the_reward_config():
     arguments = scorer_arguments({"shaping": "thesis", "tracker": "threshold", "num_envs": 2})
     assert arguments == {"num_envs": 2, "config": RewardConfig(shaping="thesis", tracker="threshold")}
-    arguments = scorer_arguments({"config": {"shaping": "raw"}, "hold_steps": 2})
-    assert arguments["config"] == RewardConfig(shaping="raw", hold_steps=2)
+    arguments = scorer_arguments({"config": {"shaping": "thesis"}, "hold_steps": 2})
+    assert arguments["config"] == RewardConfig(shaping="thesis", hold_steps=2)
     with pytest.raises(
         ScorerOptionError, match=r"unknown scorer option 'stage_evidnce' \(did you mean stage_evidence\?\)"
     ):
@@ -193,7 +193,7 @@ def test_the_report_replays_a_pixel_stage_tracker_on_the_frames(tiny_model, tiny
     embeddings = tiny_model.embed(demo.frames)
     result = demo_quality(tiny_model, demo, embeddings, 3, "inest", pixels)
     live = rewards.RewardScorer(tiny_model, 3, "inest", **pixels)  # frame by frame, as a camera would
-    scored = np.concatenate([live.score_frames(frame[None]).total for frame in demo.frames])
+    scored = np.concatenate([live.score(frame[None]).total for frame in demo.frames])
     np.testing.assert_allclose(result.reward, scored, rtol=1e-5, atol=1e-6)
     with pytest.raises(ValueError, match="needs every frame's stage_evidence"):
         rewards.replay(tiny_model, embeddings, 3, "inest", pixels)

@@ -13,9 +13,14 @@ import numpy as np
 import pytest
 import torch
 import yaml
-from inest_reward_node.data import load_demos, sample_reds_batch, segmentation
-from inest_reward_node.encoders import EncoderConfig
-from inest_reward_node.model import (
+from inest_reward_node.learning.data import load_demos, sample_reds_batch, segmentation
+from inest_reward_node.learning.losses import pearson_distance, supervised_contrastive_loss
+from inest_reward_node.learning.objectives import RedsObjective
+from inest_reward_node.learning.pretrain import PretrainConfig
+from inest_reward_node.runtime.config import RewardConfig
+from inest_reward_node.runtime.encoders import EncoderConfig
+from inest_reward_node.runtime.methods import default_variant
+from inest_reward_node.runtime.model import (
     ModelError,
     ModelMetadata,
     build_network,
@@ -23,18 +28,9 @@ from inest_reward_node.model import (
     read_model_metadata,
     save_model,
 )
-from inest_reward_node.objectives import RedsObjective
-from inest_reward_node.pretrain import PretrainConfig
-from inest_reward_node.reds import (
-    RedsConfig,
-    infer_subtasks,
-    pearson_distance,
-    subtask_scores,
-    supervised_contrastive_loss,
-)
-from inest_reward_node.rewards import RewardScorer, default_variant, replay
-from inest_reward_node.shaping import ShapingConfig
-from inest_reward_node.stages import RewardConfig
+from inest_reward_node.runtime.reds import RedsConfig, infer_subtasks, subtask_scores
+from inest_reward_node.runtime.rewards import RewardScorer, replay
+from inest_reward_node.runtime.shaping import ShapingConfig
 from small_training import small_train_config
 
 TINY_REDS = RedsConfig(frames_per_batch=8, canonical_samples=2)
@@ -166,10 +162,10 @@ def test_reds_reward_is_the_reward_of_the_subtask_reds_infers(reds_model_dir, ti
     assert np.all(played.bonus == 0.0) and np.all(played.parts.intrinsic == 0.0)
     # many environments at once: the same numbers as one episode replayed
     scorer = RewardScorer(model, 3, num_envs=2)
-    parts = scorer.score_frames(demo.frames[:2])
+    parts = scorer.score(demo.frames[:2])
     assert parts.total.shape == (2,) and parts.subtask.tolist() == inferred[:2].tolist()
     # the privileged diagnostic conditions on the true subtask instead
-    assert not RewardScorer(model, 3, config=RewardConfig(stage_source="privileged")).infers_stage
+    assert RewardScorer(model, 3, config=RewardConfig(stage_source="privileged")).stage_teller == "caller"
 
 
 def test_reds_reward_quality_report(reds_model_dir, tiny_demos, tmp_path):

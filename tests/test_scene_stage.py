@@ -4,6 +4,7 @@ in the reward node, whose streams pair the two cameras' frames by stamp."""
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -11,18 +12,19 @@ import pytest
 import rclpy
 from inest_agent_node.envs import LEARNED_STAGE, STAGE_FRAME_KEY, build_env
 from inest_interfaces.msg import Reward
-from inest_reward_node.data import load_demos
-from inest_reward_node.intrinsic import IntrinsicConfig
-from inest_reward_node.model import load_model
-from inest_reward_node.quality import evaluate, load_stage_frames
-from inest_reward_node.rewards import RewardScorer
-from inest_reward_node.serving import StreamScorer
-from inest_reward_node.stage_head import StageHeadConfig
-from inest_reward_node.stages import RewardConfig
+from inest_reward_node.learning import pretrain
+from inest_reward_node.learning.calibrate import CalibrationConfig
+from inest_reward_node.learning.data import load_demos
+from inest_reward_node.learning.quality import evaluate, load_stage_frames
+from inest_reward_node.runtime.config import RewardConfig
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.model import load_model
+from inest_reward_node.runtime.rewards import RewardScorer
+from inest_reward_node.runtime.serving import StreamScorer
+from inest_reward_node.runtime.stage_head import StageHeadConfig
 from test_graph import reward_node_args, sim_node_args
 
 from inest_agent_node.config import TrainConfig
-from inest_reward_node import pretrain
 
 PIXELS = RewardConfig(stage_evidence="pixels")  # the confirmed tracker, reading the head (what auto resolves to)
 EMBEDDING = RewardConfig(stage_evidence="embedding")
@@ -73,8 +75,9 @@ def test_recalibration_keeps_the_encoder_and_fits_a_head_on_the_scene_camera(tin
     assert pretrain.main(arguments) == 2  # the folder holds a model already: refused, nothing overwritten
     error = capsys.readouterr().err
     assert "already holds a model" in error and error.count("\n") == 1
-    with pytest.raises(ValueError, match="unknown view 'top'"):
-        StageHeadConfig(view="top")
+    with pytest.raises(ValueError, match="unknown view 'top'"):  # pretraining knows the simulator's cameras
+        dataclasses.replace(config, calibration=CalibrationConfig(stage_head=StageHeadConfig(view="top")))
+    assert StageHeadConfig(view="wrist").view == "wrist"  # a model's camera names are the user's
 
 
 def test_the_scorer_needs_the_scene_frame_of_every_step(tiny_tcc_run, scene_model):
@@ -86,8 +89,8 @@ def test_the_scorer_needs_the_scene_frame_of_every_step(tiny_tcc_run, scene_mode
     assert RewardScorer(model, 3).stage_camera == "allo"  # the default (auto) reads the head when there is one
     assert RewardScorer(model, 3, config=EMBEDDING).stage_camera is None  # the classifier reads no second camera
     with pytest.raises(ValueError, match="reads the 'allo' camera"):
-        scorer.score_frames(ego[:2])
-    scorer.score_frames(ego[:2], stage_frames=allo[:2])
+        scorer.score(ego[:2])
+    scorer.score(ego[:2], stage_frames=allo[:2])
     head = model.goals(3).stage_head
     assert not np.allclose(head.at_least(ego), head.at_least(allo))  # it does look at the frames it is given
 
@@ -129,7 +132,7 @@ def test_a_stream_waits_for_the_scene_frame_of_the_same_stamp(tiny_tcc_run, scen
     streams.submit_stage(0, 1, allo[0])
     scored = streams.flush()
     assert [frame.stamp for frame in scored] == [1, 2]
-    expected = RewardScorer(model, 3, config=PIXELS).score_frames(
+    expected = RewardScorer(model, 3, config=PIXELS).score(
         ego[:2], envs=np.zeros(2, int), rounds=np.arange(2), stage_frames=allo[:2]
     )
     np.testing.assert_allclose([frame.total for frame in scored], expected.total, rtol=1e-5)

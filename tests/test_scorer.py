@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from inest_reward_node.encoders import EncoderConfig
-from inest_reward_node.intrinsic import IntrinsicConfig
-from inest_reward_node.model import ModelError, ModelMetadata, RewardModel, build_network, load_model
-from inest_reward_node.rewards import THESIS_REWARD, RewardScorer
-from inest_reward_node.shaping import ShapingConfig, distance_reward
-from inest_reward_node.stages import RewardConfig, StageClassifier
+from inest_reward_node.runtime.config import RewardConfig
+from inest_reward_node.runtime.encoders import EncoderConfig
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.model import ModelError, ModelMetadata, RewardModel, build_network, load_model
+from inest_reward_node.runtime.rewards import THESIS_REWARD, RewardScorer
+from inest_reward_node.runtime.shaping import ShapingConfig, distance_reward
+from inest_reward_node.runtime.stage_classifier import StageClassifier
 
 GOALS = [[0.0, 0.0], [10.0, 0.0], [20.0, 0.0]]
 
@@ -154,7 +155,7 @@ def test_state_intrinsic_bonus_needs_states():
 def test_batched_scoring_matches_one_environment_at_a_time(tiny_tcc_run):
     config, run_dir = tiny_tcc_run
     model = load_model(run_dir / "model")
-    from inest_reward_node.data import load_demos
+    from inest_reward_node.learning.data import load_demos
 
     demos = load_demos(config.dataset, "train", "ego", 48, limit=3, progress_bar=False)
     length = min(len(demo) for demo in demos)

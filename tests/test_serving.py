@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from inest_reward_node.images import decode_image, encode_rgb
-from inest_reward_node.intrinsic import IntrinsicConfig
-from inest_reward_node.rewards import RewardScorer
-from inest_reward_node.serving import StreamScorer, ThrottledLog
+from inest_reward_node.runtime.images import decode_image, encode_rgb
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.rewards import RewardScorer
+from inest_reward_node.runtime.serving import StreamScorer, ThrottledLog
 from test_scorer import line_model
 
 FRAMES = np.random.default_rng(3).integers(0, 256, (12, 32, 32, 3), dtype=np.uint8)

@@ -7,10 +7,11 @@ import shutil
 
 import numpy as np
 import pytest
-from inest_reward_node.model import ModelError, load_model
-from inest_reward_node.rewards import RewardScorer
-from inest_reward_node.stage_head import WEIGHTS_FILE, StageHead, StageHeadConfig, boundary_frames, fit_stage_head
-from inest_reward_node.stages import RewardConfig
+from inest_reward_node.learning.stage_fitting import boundary_frames, fit_stage_head
+from inest_reward_node.runtime.config import RewardConfig
+from inest_reward_node.runtime.model import ModelError, load_model
+from inest_reward_node.runtime.rewards import RewardScorer
+from inest_reward_node.runtime.stage_head import WEIGHTS_FILE, StageHead, StageHeadConfig
 
 
 def marked_frames(stages: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -66,9 +67,9 @@ def test_heads_are_saved_with_the_model_and_used_only_when_asked(tiny_tcc_run, t
         np.testing.assert_array_equal(
             first.goals(scheme).stage_head.at_least(frames), second.goals(scheme).stage_head.at_least(frames)
         )
-    pixels = RewardConfig(tracker="classifier", stage_evidence="pixels")
+    pixels = RewardConfig(tracker="confirmed", stage_evidence="pixels")
     scorer = RewardScorer(first, 3, num_envs=3, config=pixels)
-    parts = scorer.score_frames(frames)
+    parts = scorer.score(frames)
     assert parts.total.shape == (3,)
     with pytest.raises(ValueError, match="needs every frame's stage_evidence"):
         scorer.score_embeddings(first.embed(frames))

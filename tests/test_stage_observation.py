@@ -9,7 +9,7 @@ import pytest
 from inest_agent_node.diagnostics import RewardDiagnostics
 from inest_agent_node.envs import LEARNED_STAGE, TRUE_PROGRESS, StageObservationVecEnv, build_env, make_vec_env
 from inest_agent_node.train import Trainer
-from inest_reward_node.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 from inest_sim_node.observation import stage_fields, stage_observation
 from inest_sim_node.scoring import dense_reward
 from small_training import small_train_config

@@ -1,5 +1,5 @@
-"""RewardConfig: progress shaping, the honest trackers (reopening, stage classifier), the privileged
-diagnostic, the intrinsic cap, and models calibrated before any of them."""
+"""RewardConfig: segment shaping, the confirmed tracker (threshold test, stage evidence, reopening),
+the privileged diagnostic, the intrinsic cap, and models calibrated before any of them."""
 
 from __future__ import annotations
 
@@ -8,28 +8,22 @@ import shutil
 
 import numpy as np
 import pytest
-from inest_reward_node.intrinsic import IntrinsicConfig
-from inest_reward_node.model import MODEL_FILE, STAGE_HEADS_FILE, ModelError, load_model
-from inest_reward_node.rewards import RewardScorer, goal_distances
-from inest_reward_node.stages import (
-    ClassifierTracker,
-    ConfirmedTracker,
-    ReopeningTracker,
-    RewardConfig,
-    StageClassifier,
-    demo_stages,
-    fit_stage_classifier,
-    true_stages,
-)
+from inest_reward_node.learning.stage_fitting import fit_stage_classifier
+from inest_reward_node.learning.task_stages import demo_stages, true_stages
+from inest_reward_node.runtime.config import RewardConfig
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.methods import goal_distances
+from inest_reward_node.runtime.model import MODEL_FILE, STAGE_HEADS_FILE, ModelError, load_model
+from inest_reward_node.runtime.rewards import RewardScorer
+from inest_reward_node.runtime.stage_classifier import StageClassifier
+from inest_reward_node.runtime.trackers import ConfirmedTracker, ConfirmSettings, Evidence
 from test_scorer import line_model
 
-PROGRESS = 20  # STATE_FIELDS index of ordered_progress
 
-
-def run(scorer: RewardScorer, xs, states=None) -> list:
-    """Score frames at x positions on the line model, one at a time."""
+def run(scorer: RewardScorer, xs, stages=None) -> list:
+    """Score frames at x positions on the line model, one at a time (`stages`: their true stages)."""
     return [
-        scorer.score_embeddings(np.array([[x, 0.0]]), None if states is None else states[i : i + 1])
+        scorer.score_embeddings(np.array([[x, 0.0]]), known_stages=None if stages is None else stages[i : i + 1])
         for i, x in enumerate(xs)
     ]
 
@@ -62,15 +56,12 @@ def test_reward_config_validates_its_fields():
 
 
 @pytest.mark.parametrize("stage_source", ["tracker", "privileged"])
-@pytest.mark.parametrize("shaping", ["progress", "segment"])
-def test_progress_shaping_rises_within_every_subtask_and_never_dips_at_a_switch(shaping, stage_source):
+def test_segment_shaping_rises_within_every_subtask_and_never_dips_at_a_switch(stage_source):
     xs = approach_all_goals()
-    config = RewardConfig(shaping=shaping, stage_source=stage_source)
+    config = RewardConfig(shaping="segment", stage_source=stage_source)
     scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=config)
-    progress = np.clip(np.floor(np.array(xs) / 10.0) + 1, 0, 3)  # the line's "true" stage: goal k reached
-    states = np.zeros((len(xs), 21), np.float32)
-    states[:, PROGRESS] = progress / 3
-    steps = run(scorer, xs, states if stage_source == "privileged" else None)
+    progress = np.clip(np.floor(np.array(xs) / 10.0) + 1, 0, 3).astype(int)  # the line's "true" stage
+    steps = run(scorer, xs, progress if stage_source == "privileged" else None)
     total = np.array([s.total[0] for s in steps])
     completed = np.array([s.completed[0] for s in steps])
     assert completed[-1] == 3 and np.all(np.diff(completed) >= 0)
@@ -85,9 +76,8 @@ def test_progress_shaping_rises_within_every_subtask_and_never_dips_at_a_switch(
     assert total[0] == pytest.approx(2.0 * (1 - 9.0 / 10.0))
 
 
-@pytest.mark.parametrize("shaping", ["progress", "segment"])
-def test_progress_shaping_with_one_subtask_uses_the_single_goal(shaping):
-    scorer = RewardScorer(line_model(), scheme=1, variant="inest", config=RewardConfig(shaping=shaping))
+def test_segment_shaping_with_one_subtask_uses_the_single_goal():
+    scorer = RewardScorer(line_model(), scheme=1, variant="inest", config=RewardConfig(shaping="segment"))
     steps = run(scorer, [-10.0, 5.0, 20.0, 20.0, 20.0])
     assert [s.total[0] for s in steps[:2]] == pytest.approx([0.0, 2.0 * (1 - 15.0 / 30.0)])
     assert steps[-1].completed[0] == 1 and steps[-1].total[0] == pytest.approx(2.0)
@@ -103,19 +93,7 @@ def test_segment_shaping_is_where_the_frame_sits_between_start_and_goal():
     assert scorer.score_embeddings(np.array([[1.0, 0.0]])).total[0] == pytest.approx(2.0 * 11.0 / 12.0)
 
 
-def test_raw_shaping_is_r_of_the_raw_distance():
-    config = RewardConfig(shaping="raw", tracker="threshold")
-    model = line_model()
-    model.subtasks[3].distance_scale = 0.01  # r(d) in rescaled units would now differ: raw ignores the scale
-    scorer = RewardScorer(model, scheme=3, config=config)
-    from inest_reward_node.shaping import distance_reward
-
-    assert scorer.score_embeddings(np.array([[4.0, 3.0]])).total[0] == pytest.approx(
-        distance_reward(5.0, model.shaping)
-    )
-
-
-def test_the_classifier_tracker_does_not_fire_on_frames_the_classifier_calls_stage_0():
+def test_the_confirmed_tracker_does_not_fire_on_frames_the_classifier_calls_stage_0():
     model = line_model(hold_steps=2)
     never = model.subtasks[3].stage_classifier.to_dict()
     never["out_bias"] = [50.0, 0.0, 0.0, 0.0]  # stage 0, whatever the frame
@@ -123,35 +101,8 @@ def test_the_classifier_tracker_does_not_fire_on_frames_the_classifier_calls_sta
     threshold = RewardScorer(model, scheme=3, config=RewardConfig(tracker="threshold"))
     at_goal = [0.0] * 30  # r(d) above the threshold: the counter completes subtask 0
     assert run(threshold, at_goal)[-1].completed[0] == 1
-    for tracker in ("classifier", "confirmed"):
-        honest = RewardScorer(model, scheme=3, config=RewardConfig(tracker=tracker))
-        assert all(s.completed[0] == 0 and not s.switched[0] for s in run(honest, at_goal))
-
-
-def test_the_classifier_tracker_reopens_a_subtask_that_is_undone():
-    scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=RewardConfig(tracker="classifier"))
-    done = run(scorer, [0.0, 0.0, 5.0])
-    assert done[1].switched[0] and done[-1].completed[0] == 1 and done[-1].bonus[0] == 2.0
-    back = run(scorer, [-5.0, 5.0, -5.0, -5.0])  # one frame back is not enough; two in a row are
-    assert [s.completed[0] for s in back] == [1, 1, 1, 0]
-    assert not any(s.switched[0] for s in back)  # switched marks upward switches only
-    assert back[-1].bonus[0] == 0.0 and back[-1].subtask[0] == 0
-    # the progress reward drops with it: undoing progress is not paid for
-    assert back[-1].total[0] < done[-1].total[0] - 1.0
-    again = run(scorer, [0.0, 0.0])
-    assert again[-1].switched[0] and again[-1].completed[0] == 1
-
-
-def test_the_classifier_tracker_moves_one_stage_at_a_time_with_hysteresis():
-    tracker = ClassifierTracker(3, hold_steps=2, confidence=0.5)
-    sure_of_three = np.array([1.0, 1.0, 1.0, 1.0])  # P(stage >= j) for j = 0..3
-    assert [tracker.step(sure_of_three) for _ in range(6)] == [0, 1, 0, 1, 0, 1]
-    assert tracker.done and tracker.step(sure_of_three) == 0
-    unsure = np.array([1.0, 0.9, 0.6, 0.4])  # below 3, at least 2: stays at 2 once there
-    assert [tracker.step(unsure) for _ in range(3)] == [0, -1, 0]
-    assert tracker.completed == 2
-    tracker.reset()
-    assert (tracker.completed, tracker.up_streak, tracker.down_streak) == (0, 0, 0)
+    honest = RewardScorer(model, scheme=3, config=RewardConfig(tracker="confirmed"))
+    assert all(s.completed[0] == 0 and not s.switched[0] for s in run(honest, at_goal))
 
 
 # (threshold-test rewards against goals 0 and 1, segment closeness for subtasks 0 and 1), thresholds -0.02
@@ -160,85 +111,82 @@ MOVED_ON = (np.array([-0.5, -0.3]), np.array([0.8, 0.3]))  # left goal 0, past i
 PUSHED_BACK = (np.array([-0.5, -0.6]), np.array([0.2, 0.0]))  # left goal 0, looks like subtask 0's first half
 
 
-def test_the_reopening_tracker_reopens_once_the_frames_look_like_the_subtasks_first_half():
-    tracker = ReopeningTracker([-0.02, -0.02], hold_steps=2)
-    assert [tracker.step(*AT_GOAL_0) for _ in range(2)] == [0, 1]
-    assert [tracker.step(*MOVED_ON) for _ in range(3)] == [0, 0, 0]
-    assert [tracker.step(*PUSHED_BACK) for _ in range(2)] == [0, -1]
-    assert tracker.completed == 0
+def confirmed(hold_steps: int, window: int, agree_steps: int = 0, instant: float = 1.0) -> ConfirmedTracker:
+    return ConfirmedTracker([-0.02, -0.02], hold_steps, ConfirmSettings(0.5, window, agree_steps, instant))
+
+
+def seen(frame: tuple[np.ndarray, np.ndarray], at_least: np.ndarray) -> Evidence:
+    """A frame's evidence: its (threshold-test rewards, segment closeness) and P(stage >= j)."""
+    return Evidence(*frame, at_least, None)
 
 
 def test_the_confirmed_tracker_needs_the_threshold_test_and_then_the_classifier():
     says_0, says_1 = np.array([1.0, 0.1, 0.0]), np.array([1.0, 0.9, 0.1])  # P(stage >= j), j = 0..2
-    tracker = ConfirmedTracker([-0.02, -0.02], hold_steps=2, confidence=0.5, window=3)
-    assert [tracker.step(*AT_GOAL_0, says_0) for _ in range(5)] == [0] * 5  # the classifier disagrees
-    assert [tracker.step(*MOVED_ON, says_1) for _ in range(3)] == [0, 0, 0]  # too late: the window is over
-    assert [tracker.step(*AT_GOAL_0, says_1) for _ in range(3)] == [0, 0, 1]  # test held twice, then agreed twice
+    tracker = confirmed(2, 3)
+    assert [tracker.step(seen(AT_GOAL_0, says_0)) for _ in range(5)] == [0] * 5  # the classifier disagrees
+    assert [tracker.step(seen(MOVED_ON, says_1)) for _ in range(3)] == [0, 0, 0]  # too late: the window is over
+    assert [tracker.step(seen(AT_GOAL_0, says_1)) for _ in range(3)] == [0, 0, 1]  # test held twice, then agreed twice
     # the classifier may lag: it agrees after the threshold test has stopped holding, within the window
     tracker.reset()
-    steps = [tracker.step(*AT_GOAL_0, says_0) for _ in range(2)] + [tracker.step(*MOVED_ON, says_1) for _ in range(2)]
+    steps = [tracker.step(seen(AT_GOAL_0, says_0)) for _ in range(2)] + [
+        tracker.step(seen(MOVED_ON, says_1)) for _ in range(2)
+    ]
     assert steps == [0, 0, 0, 1] and tracker.completed == 1
-    assert [tracker.step(*PUSHED_BACK, says_1) for _ in range(2)] == [0, -1]  # and reopens
+    assert [tracker.step(seen(PUSHED_BACK, says_1)) for _ in range(2)] == [0, -1]  # and reopens
 
 
 def test_the_confirmed_tracker_confirms_on_the_first_agreeing_frame_with_one_confirm_step():
     says_0, says_1 = np.array([1.0, 0.1, 0.0]), np.array([1.0, 0.9, 0.1])
     lags = {}
     for agree_steps in (0, 1):  # 0: as many frames as the threshold test (hold_steps 3)
-        tracker = ConfirmedTracker([-0.02, -0.02], hold_steps=3, confidence=0.5, window=5, agree_steps=agree_steps)
-        steps = [tracker.step(*AT_GOAL_0, says_0) for _ in range(3)] + [
-            tracker.step(*AT_GOAL_0, says_1) for _ in range(3)
+        tracker = confirmed(3, 5, agree_steps)
+        steps = [tracker.step(seen(AT_GOAL_0, says_0)) for _ in range(3)] + [
+            tracker.step(seen(AT_GOAL_0, says_1)) for _ in range(3)
         ]
         lags[agree_steps] = steps.index(1) - 3  # frames after the classifier first agrees
     assert lags == {0: 2, 1: 0}
-    scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=RewardConfig("progress", confirm_steps=1))
+    scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=RewardConfig(confirm_steps=1))
     assert scorer.new_tracker().agree_steps == 1
 
 
 def test_the_confirmed_tracker_confirms_clear_evidence_at_once_and_weak_evidence_after_its_streak():
     weak, clear = np.array([1.0, 0.6, 0.0]), np.array([1.0, 0.95, 0.0])  # P(stage >= j), j = 0..2
     for evidence, expected in ((weak, [0, 0, 0, 0, 1, 0]), (clear, [0, 0, 1, 0, 0, 0])):
-        tracker = ConfirmedTracker([-0.02, -0.02], hold_steps=3, confidence=0.5, window=5, instant=0.9)
-        assert [tracker.step(*AT_GOAL_0, evidence) for _ in range(6)] == expected
+        tracker = confirmed(3, 5, instant=0.9)
+        assert [tracker.step(seen(AT_GOAL_0, evidence)) for _ in range(6)] == expected
     # before the threshold test has held, even clear evidence confirms nothing
-    tracker = ConfirmedTracker([-0.02, -0.02], hold_steps=3, confidence=0.5, window=5, instant=0.9)
-    assert [tracker.step(*MOVED_ON, clear) for _ in range(4)] == [0] * 4
+    tracker = confirmed(3, 5, instant=0.9)
+    assert [tracker.step(seen(MOVED_ON, clear)) for _ in range(4)] == [0] * 4
     assert RewardScorer(line_model(hold_steps=2), scheme=3).new_tracker().instant == 0.9  # the default
 
 
-def test_the_reopening_trackers_in_the_scorer():
-    # reopening completes once the threshold test holds twice; confirmed then waits for the classifier's
-    # streak (its instant path off; test_the_confirmed_tracker_confirms_clear_evidence_at_once... covers it)
-    expected = {"reopening": [0, 1, 1, 1, 1, 1, 0], "confirmed": [0, 0, 1, 1, 1, 1, 0]}
-    for tracker, stages in expected.items():
-        config = RewardConfig("progress", tracker, instant_confidence=1.0)
-        scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=config)
-        steps = run(scorer, [0.0, 0.0, 0.0, 3.0, 3.0, -6.0, -6.0])  # x = 3: past goal 0; x = -6: back before it
-        assert [s.completed[0] for s in steps] == stages, tracker
+def test_the_confirmed_tracker_reopens_in_the_scorer():
+    # it completes once the threshold test has held twice and the classifier's streak follows (its
+    # instant path off; test_the_confirmed_tracker_confirms_clear_evidence_at_once... covers it)
+    config = RewardConfig(instant_confidence=1.0)
+    scorer = RewardScorer(line_model(hold_steps=2), scheme=3, config=config)
+    steps = run(scorer, [0.0, 0.0, 0.0, 3.0, 3.0, -6.0, -6.0])  # x = 3: past goal 0; x = -6: back before it
+    assert [s.completed[0] for s in steps] == [0, 0, 1, 1, 1, 1, 0]
 
 
 def test_privileged_stage_follows_the_true_progress():
     scorer = RewardScorer(line_model(), scheme=3, num_envs=2, config=RewardConfig(stage_source="privileged"))
-    states = np.zeros((2, 21), np.float32)
     for k, expected_switch in ((0, False), (1, True), (1, False), (3, True), (2, False)):
-        states[:, PROGRESS] = k / 3
-        parts = scorer.score_embeddings(np.array([[-5.0, 0.0], [25.0, 0.0]]), states)
+        parts = scorer.score_embeddings(np.array([[-5.0, 0.0], [25.0, 0.0]]), known_stages=np.array([k, k]))
         assert parts.completed.tolist() == [k, k] and parts.bonus.tolist() == [2.0 * k] * 2
         assert parts.switched.tolist() == [expected_switch] * 2
     one = RewardScorer(line_model(), scheme=1, variant="inest", config=RewardConfig(stage_source="privileged"))
-    states = np.zeros((1, 21), np.float32)
-    states[0, PROGRESS] = 2 / 3
-    assert one.score_embeddings(np.array([[20.0, 0.0]]), states).completed[0] == 0
-    states[0, PROGRESS] = 1.0
-    assert one.score_embeddings(np.array([[20.0, 0.0]]), states).completed[0] == 1
-    with pytest.raises(ValueError, match="state vectors"):
+    for told, completed in ((0, 0), (1, 1)):  # the caller tells the stage in the scorer's own scheme
+        assert one.score_embeddings(np.array([[20.0, 0.0]]), known_stages=np.array([told])).completed[0] == completed
+    with pytest.raises(ValueError, match="known_stages"):
         scorer.score_embeddings(np.zeros((2, 2)))
 
 
-def test_privileged_stage_refuses_the_six_subtask_scheme(tiny_tcc_run):
-    _, run_dir = tiny_tcc_run
+def test_training_refuses_the_privileged_stage_of_the_six_subtask_scheme():
+    from inest_agent_node.config import TrainConfig
+
     with pytest.raises(ValueError, match="diagnostic"):
-        RewardScorer(load_model(run_dir / "model"), 6, config=RewardConfig(stage_source="privileged"))
+        TrainConfig(model="m", subtasks=6, learned_reward=RewardConfig(stage_source="privileged"))
 
 
 def test_the_intrinsic_cap_bounds_the_weighted_novelty():
@@ -269,23 +217,20 @@ def test_a_model_calibrated_before_reward_configs_loads_and_names_the_fix(tiny_t
     RewardScorer(model, 3, config=RewardConfig("thesis", "threshold"))  # today's reward needs none of them
     for config, missing in (
         (RewardConfig(), "start embeddings"),
-        (RewardConfig("progress", "threshold"), "start distances"),
         (RewardConfig("segment", "threshold"), "start embeddings"),
-        (RewardConfig("thesis", "classifier"), "stage classifier"),
-        (RewardConfig("thesis", "reopening"), "start embeddings"),
+        (RewardConfig("thesis", "confirmed", stage_evidence="embedding"), "start embeddings"),
     ):
         with pytest.raises(ModelError, match=rf"no per-subtask {missing}|no {missing}") as error:
             RewardScorer(model, 3, config=config)
         assert "--resume" in str(error.value)
     # one subtask: the start distance is the XIRL scale's mean distance, so it is filled in
     assert model.goals(1).start_distances == pytest.approx([1.0 / model.goals(1).distance_scale])
-    RewardScorer(model, 1, "inest", config=RewardConfig("progress", "threshold"))
 
 
 def test_calibration_stores_start_distances_and_a_stage_classifier(tiny_tcc_run):
     config, run_dir = tiny_tcc_run
-    from inest_reward_node.calibrate import subtask_starts
-    from inest_reward_node.data import load_demos
+    from inest_reward_node.learning.calibrate import subtask_starts
+    from inest_reward_node.learning.data import load_demos
 
     model = load_model(run_dir / "model")
     demos = load_demos(config.dataset, "train", "ego", 48, progress_bar=False)
@@ -362,9 +307,9 @@ def test_the_reward_node_declares_the_reward_config_as_parameters():
     assert set(node.declared) == {f"reward.{name}" for name in RewardConfig().to_dict()}
     assert node.declared["reward.intrinsic_cap"] == float("inf")  # a double, not a None string
     chosen = declare_reward_config(
-        FakeNode({"reward.shaping": "thesis", "reward.tracker": "reopening", "reward.intrinsic_cap": 0.5})
+        FakeNode({"reward.shaping": "thesis", "reward.tracker": "threshold", "reward.intrinsic_cap": 0.5})
     )
-    assert chosen == RewardConfig("thesis", "reopening", intrinsic_cap=0.5)
+    assert chosen == RewardConfig("thesis", "threshold", intrinsic_cap=0.5)
     with pytest.raises(ValueError, match="only sees images"):
         declare_reward_config(FakeNode({"reward.stage_source": "privileged"}))
     with pytest.raises(ValueError, match="unknown reward tracker"):
@@ -372,7 +317,7 @@ def test_the_reward_node_declares_the_reward_config_as_parameters():
 
 
 def test_serving_refuses_the_privileged_stage():
-    from inest_reward_node.serving import StreamScorer
+    from inest_reward_node.runtime.serving import StreamScorer
 
-    with pytest.raises(ValueError, match="state vectors"):
+    with pytest.raises(ValueError, match="true stage"):
         StreamScorer(RewardScorer(line_model(), 3, config=RewardConfig(stage_source="privileged")))

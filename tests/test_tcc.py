@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from inest_reward_node.tcc import tcc_loss
+from inest_reward_node.learning.losses import tcc_loss
 
 FRAMES, DIM = 16, 8
 

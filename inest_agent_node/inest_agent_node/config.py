@@ -9,10 +9,10 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from inest_reward_node.calibrate import TCC_SCHEMES
-from inest_reward_node.intrinsic import IntrinsicConfig
-from inest_reward_node.runs import merge_settings
-from inest_reward_node.stages import RewardConfig
+from inest_reward_node.learning.runs import merge_settings
+from inest_reward_node.runtime.config import RewardConfig
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.model import TCC_SCHEMES
 from inest_sim_node.config import ORACLE_REWARDS
 from inest_sim_node.observation import STATE_OBSERVATIONS
 from inest_sim_node.scoring import NUM_BLOCKS
@@ -116,6 +116,10 @@ class TrainConfig:
             raise ValueError(f"unknown learner {self.learner!r}; expected one of {LEARNER_NAMES}")
         if self.oracle not in ORACLE_REWARDS:
             raise ValueError(f"unknown oracle {self.oracle!r}; expected one of {ORACLE_REWARDS}")
+        if self.learned_reward.stage_source == "privileged" and reward_scheme(self.reward, self.subtasks) == 6:
+            raise ValueError(
+                "stage_source 'privileged' (a diagnostic) knows the true stage of the 1- and 3-subtask schemes only"
+            )
         if self.observation == "stage" and self.reward_batch_steps != 1:
             raise ValueError(
                 "the stage observation needs every step's stage before the next action: "

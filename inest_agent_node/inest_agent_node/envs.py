@@ -18,9 +18,10 @@ from typing import Any
 
 import gymnasium
 import numpy as np
-from inest_reward_node.intrinsic import IntrinsicConfig, NoveltyMemory
-from inest_reward_node.model import load_model
-from inest_reward_node.rewards import RewardScorer
+from inest_reward_node.learning.task_stages import privileged_stages
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig, NoveltyMemory
+from inest_reward_node.runtime.model import load_model
+from inest_reward_node.runtime.rewards import RewardScorer
 from inest_sim_node.observation import stage_observation, stage_observation_space
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
 
@@ -87,7 +88,7 @@ class LearnedRewardVecEnv(VecEnvWrapper):
     With `batch_steps` > 1 the frames of that many vector steps are scored together: one encoder
     pass over batch_steps x N frames costs about 40 % less per frame on 2 cores than N at a time,
     and the novelty memories are searched once; the rewards are those of scoring every step
-    (RewardScorer.score_embeddings with rounds). step() then returns NaN rewards (a reward that
+    (RewardScorer.score with rounds). step() then returns NaN rewards (a reward that
     is not known yet must not be trained on) and the learned ones come out of take_rewards() in
     step order, for an algorithm that holds each transition until its reward is known
     (learners.RewardBatchingMixin), which says so with `accept_deferred_rewards()`; stepping
@@ -160,17 +161,17 @@ class LearnedRewardVecEnv(VecEnvWrapper):
         """Score every waiting step: one encoder pass and one novelty search for all of them."""
         if not self.waiting:
             return
-        frames = np.concatenate([step.frames for step in self.waiting])
         count, steps = self.num_envs, len(self.waiting)
-        scored = self.scorer.score_frames(
-            frames,
-            np.concatenate([step.states for step in self.waiting]),
+        states = np.concatenate([step.states for step in self.waiting])
+        known = privileged_stages(states, self.scorer.num_subtasks) if self.scorer.needs_known_stages else None
+        scored = self.scorer.score(
+            np.concatenate([step.frames for step in self.waiting]),
+            None if self.scorer.stage_camera is None else np.concatenate([s.stage_frames for s in self.waiting]),
             envs=np.tile(np.arange(count), steps),
             rounds=np.repeat(np.arange(steps), count),
             episode_ends=np.concatenate([step.dones for step in self.waiting]),
-            stage_frames=None
-            if self.scorer.stage_camera is None
-            else np.concatenate([s.stage_frames for s in self.waiting]),
+            states=states,
+            known_stages=known,
         )
         for position, step in enumerate(self.waiting):
             parts = scored.select(slice(position * count, (position + 1) * count))

@@ -49,7 +49,7 @@ import numpy as np
 import yaml
 from inest_common.files import checkout_relative, read_json, read_run_file, write_atomic
 from inest_common.progress import track
-from inest_reward_node.runs import CONFIG_FILE
+from inest_reward_node.learning.runs import CONFIG_FILE
 
 from .config import GridConfig, ReferenceResult
 from .grid_quality import QUALITY_DIR, quality_table

@@ -19,11 +19,11 @@ from pathlib import Path
 from typing import Any
 
 from inest_common.files import checkout_relative, read_json, read_run_file, write_atomic
-from inest_reward_node.data import load_demos
-from inest_reward_node.model import ModelError, load_model
-from inest_reward_node.quality import REPORT_FILE, evaluate, load_stage_frames
-from inest_reward_node.runs import CONFIG_FILE
-from inest_reward_node.stages import RewardConfig
+from inest_reward_node.learning.data import load_demos
+from inest_reward_node.learning.quality import REPORT_FILE, evaluate, load_stage_frames
+from inest_reward_node.learning.runs import CONFIG_FILE
+from inest_reward_node.runtime.config import RewardConfig
+from inest_reward_node.runtime.model import ModelError, load_model
 from inest_sim_node.dataset import DatasetError
 
 from .config import reward_scheme

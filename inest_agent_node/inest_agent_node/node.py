@@ -20,8 +20,8 @@ from pathlib import Path
 
 from inest_common.files import read_run_file
 from inest_common.rosutil import declare_dataclass, run_node
-from inest_reward_node.intrinsic import IntrinsicConfig
-from inest_reward_node.model import ModelError
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.model import ModelError
 from rclpy.node import Node
 
 from .config import TrainConfig

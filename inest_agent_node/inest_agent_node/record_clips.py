@@ -1,5 +1,5 @@
 """`inest-record-clips RUN --episodes N --out FILE`: a trained policy's own rollouts, as labelled
-clips (inest_reward_node.clips) for calibrating the learned reward against.
+clips (inest_reward_node.learning.clips) for calibrating the learned reward against.
 
 Why: a learned reward is judged on the behaviour it will be shown, and the one behaviour no
 demonstration, random or wrong-order episode contains is the agent's own: a policy trained on
@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 from inest_common.progress import track
-from inest_reward_node.clips import Clip, save_clips
-from inest_reward_node.model import ModelError
+from inest_reward_node.learning.clips import Clip, save_clips
+from inest_reward_node.runtime.model import ModelError
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from .config import TrainConfig

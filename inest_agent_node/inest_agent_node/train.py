@@ -22,12 +22,11 @@ from typing import Any
 import numpy as np
 import torch
 from inest_common.files import RunFileError, read_json, read_run_file, write_atomic
-from inest_reward_node.calibrate import TCC_SCHEMES
-from inest_reward_node.coverage import measure_coverage, plot_coverage
-from inest_reward_node.intrinsic import INTRINSIC_MODES
-from inest_reward_node.model import ModelError
-from inest_reward_node.runs import CONFIG_FILE, merge_settings, prepare_run_dir
-from inest_reward_node.stages import SHAPINGS, STAGE_EVIDENCE, STAGE_SOURCES, TRACKERS
+from inest_reward_node.learning.coverage import measure_coverage, plot_coverage
+from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings, prepare_run_dir
+from inest_reward_node.runtime.config import SHAPINGS, STAGE_EVIDENCE, STAGE_SOURCES, TRACKERS
+from inest_reward_node.runtime.intrinsic import INTRINSIC_MODES
+from inest_reward_node.runtime.model import TCC_SCHEMES, ModelError
 from inest_sim_node.config import ORACLE_REWARDS
 from inest_sim_node.observation import STATE_OBSERVATIONS
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
@@ -260,7 +259,7 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     parser.add_argument("--view", choices=("ego", "allo"))
     parser.add_argument("--observation", choices=STATE_OBSERVATIONS, help="stage (default) or the bare state")
     parser.add_argument("--learner", choices=tuple(LEARNERS), help="off-policy learner (learners.py)")
-    parser.add_argument("--shaping", choices=SHAPINGS, help="learned reward shaping (stages.RewardConfig)")
+    parser.add_argument("--shaping", choices=SHAPINGS, help="learned reward shaping (runtime.config.RewardConfig)")
     parser.add_argument("--tracker", choices=TRACKERS, help="learned reward subtask tracker")
     parser.add_argument(
         "--stage-source", choices=STAGE_SOURCES, help="privileged: stage and bonus from the true progress (diagnostic)"
@@ -268,7 +267,7 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     parser.add_argument(
         "--stage-evidence",
         choices=STAGE_EVIDENCE,
-        help="what the classifier trackers read: auto (the pixel stage head if the model has one), pixels, embedding",
+        help="what the confirmed tracker reads: auto (the pixel stage head if the model has one), pixels, embedding",
     )
     parser.add_argument(
         "--confirm-steps", type=int, help="frames the confirmed tracker's stage evidence must agree (0: hold_steps)"

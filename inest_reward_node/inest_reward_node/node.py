@@ -38,13 +38,12 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Float32, Int32
 from std_srvs.srv import Trigger
 
-from .calibrate import TCC_SCHEMES
-from .images import RESIZE_MODES, ImageRejected, decode_image
-from .intrinsic import IntrinsicConfig
-from .model import ModelError, load_model
-from .rewards import RewardScorer
-from .serving import ScoredFrame, StreamScorer, ThrottledLog
-from .stages import RewardConfig
+from .runtime.config import RewardConfig
+from .runtime.images import RESIZE_MODES, ImageRejected, decode_image
+from .runtime.intrinsic import IntrinsicConfig
+from .runtime.model import TCC_SCHEMES, ModelError, load_model
+from .runtime.rewards import RewardScorer
+from .runtime.serving import ScoredFrame, StreamScorer, ThrottledLog
 
 
 @dataclass(frozen=True)

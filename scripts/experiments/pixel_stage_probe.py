@@ -18,10 +18,10 @@ import time
 
 import numpy as np
 import torch
-from inest_reward_node.clips import load_clips, random_play, wrong_order_play
-from inest_reward_node.data import load_demos
-from inest_reward_node.encoders import EncoderConfig, build_encoder, frames_to_tensor, resize_frames
-from inest_reward_node.stages import demo_stages, true_stages
+from inest_reward_node.learning.clips import load_clips, random_play, wrong_order_play
+from inest_reward_node.learning.data import load_demos
+from inest_reward_node.learning.task_stages import demo_stages, true_stages
+from inest_reward_node.runtime.encoders import EncoderConfig, build_encoder, frames_to_tensor, resize_frames
 
 SCHEME, VIEW, CLIP_SIZE = 3, "ego", 96
 DEMOS, ITERATIONS, BATCH = 200, 1500, 128

@@ -13,7 +13,7 @@ import time
 
 import torch
 from inest_agent_node.train import Trainer
-from inest_reward_node.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 
 from inest_agent_node.config import SacConfig, TrainConfig
 

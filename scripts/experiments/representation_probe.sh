@@ -36,10 +36,10 @@ variant() {  # NAME: pretrain, then the reward-quality report with its tracker a
   [ "$name" = resnet18 ] && threads=6  # its calibration and reports embed ~90k frames on the CPU
   export OMP_NUM_THREADS=$threads
   # shellcheck disable=SC2086  # flag lists
-  "$PY" -m inest_reward_node.pretrain demos --out "$name" --device "$DEVICE" --threads "$threads" \
+  "$PY" -m inest_reward_node.learning.pretrain demos --out "$name" --device "$DEVICE" --threads "$threads" \
     --iterations "$ITERATIONS" --stage-head-iterations 0 ${INEST_SIZE_FLAGS:-} ${VARIANTS[$name]} >"$name.log" 2>&1
   for stage in tracker privileged; do
-    "$PY" -m inest_reward_node.quality "$name/model" demos --out "$name/quality-$stage" --schemes 3 \
+    "$PY" -m inest_reward_node.learning.quality "$name/model" demos --out "$name/quality-$stage" --schemes 3 \
       --negative-episodes "${INEST_NEGATIVES:-40}" --scorer-option "stage_source=$stage" >>"$name.log" 2>&1
   done
 }

@@ -1,6 +1,6 @@
 """Can the stage classifier on the frozen 32-d embedding tell a trained policy's frames apart?
 
-Fits the classifier (inest_reward_node.stages.fit_stage_classifier) on the training
+Fits the classifier (inest_reward_node.learning.stage_fitting.fit_stage_classifier) on the training
 demonstrations, the calibration's random and wrong-order play and, optionally, a fit clip file
 of a policy's own rollouts (inest-record-clips), and measures on a held-out clip file of the
 same policy: frame accuracy and, per true stage s, the share of frames the classifier calls "stage >= s + 1" (its false
@@ -16,10 +16,11 @@ import sys
 import time
 
 import numpy as np
-from inest_reward_node.clips import load_clips, random_play, wrong_order_play
-from inest_reward_node.data import load_demos
-from inest_reward_node.model import load_model
-from inest_reward_node.stages import StageClassifierConfig, demo_stages, fit_stage_classifier, true_stages
+from inest_reward_node.learning.clips import load_clips, random_play, wrong_order_play
+from inest_reward_node.learning.data import load_demos
+from inest_reward_node.learning.stage_fitting import StageClassifierConfig, fit_stage_classifier
+from inest_reward_node.learning.task_stages import demo_stages, true_stages
+from inest_reward_node.runtime.model import load_model
 
 SCHEME = 3
 SETTINGS = {

@@ -19,12 +19,12 @@ import json
 from pathlib import Path
 
 import torch
-from inest_reward_node.calibrate import CalibrationConfig
-from inest_reward_node.clips import random_play, wrong_order_play
-from inest_reward_node.data import load_demos
-from inest_reward_node.model import load_model, save_model
-from inest_reward_node.stage_head import fit_stage_head
-from inest_reward_node.stages import demo_stages, true_stages
+from inest_reward_node.learning.calibrate import CalibrationConfig
+from inest_reward_node.learning.clips import random_play, wrong_order_play
+from inest_reward_node.learning.data import load_demos
+from inest_reward_node.learning.stage_fitting import fit_stage_head
+from inest_reward_node.learning.task_stages import demo_stages, true_stages
+from inest_reward_node.runtime.model import load_model, save_model
 
 
 def parse_variant(text: str) -> tuple[str, dict[str, float]]:

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from inest_agent_node.evaluate import EvalResult, format_table
 from inest_agent_node.train import RESULTS_FILE
-from inest_reward_node.runs import CONFIG_FILE
+from inest_reward_node.learning.runs import CONFIG_FILE
 
 from .recording import RecordingError, check_target
 from .supervisor import (

@@ -1,6 +1,6 @@
 """Calibration of a pretrained encoder: goal embeddings, XIRL distance scale, subtask-completion
 thresholds, per-subtask start distances and embeddings, the stage classifier (fitted by
-stages.py) and the pixel stage head (stage_head.py), from the training demonstrations and
+stage_fitting.py) and the pixel stage head (runtime/stage_head.py), from the training demonstrations and
 random, wrong-order and clip-file play.
 
 `calibrate()` computes all of them for every subtask scheme (TCC: 1, 3 and 6 subtasks; HOLD-R: 1;
@@ -18,17 +18,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from inest_common.progress import track
 
+from ..runtime.methods import subtask_rewards
+from ..runtime.model import TCC_SCHEMES, RewardModel, SubtaskGoals
+from ..runtime.stage_head import StageHeadConfig
 from .clips import Clip, load_clips, random_play, wrong_order_play
 from .data import Demo, load_demos
-from .model import RewardModel, SubtaskGoals
-from .rewards import subtask_rewards
-from .stage_head import StageHeadConfig, fit_stage_head
-from .stages import StageClassifierConfig, demo_stages, fit_stage_classifier, true_stages
+from .stage_fitting import StageClassifierConfig, fit_stage_classifier, fit_stage_head
+from .task_stages import demo_stages, true_stages
 
 if TYPE_CHECKING:
     from .pretrain import PretrainConfig
-
-TCC_SCHEMES = (1, 3, 6)
 
 
 @dataclass(frozen=True)
@@ -46,12 +45,12 @@ class CalibrationConfig:
     not really complete (negatives) — but never so far that fewer than `demo_pass_rate` of the
     demonstrations would complete it before `late_frames` frames after its end.
 
-    The stage classifier (stages.py) is fitted on the demonstrations, the same random-policy
+    The stage classifier (stage_fitting.py) is fitted on the demonstrations, the same random-policy
     episodes and `wrong_order_episodes` episodes of the scripted expert placing the blocks in a
     wrong order (inest_sim_node.expert.ScriptedExpert(order=...)), every frame labelled with the
     simulator's true ordered progress, and on the labelled `clips` files (clips.py; e.g. a trained
     policy's own rollouts from inest-record-clips, whose frames the classifier must not mistake
-    for progress). The pixel stage head (stage_head.py) is fitted on the same frames (the first
+    for progress). The pixel stage head (runtime/stage_head.py) is fitted on the same frames (the first
     `stage_head.max_demos` demonstrations). The thresholds use random play only."""
 
     percentile: float = 2.0

@@ -80,13 +80,15 @@ from inest_sim_node.expert import WRONG_ORDER
 from inest_sim_node.world import BLOCK_COLOURS
 from scipy.stats import spearmanr
 
+from ..runtime.config import RewardConfig
+from ..runtime.intrinsic import IntrinsicConfig
+from ..runtime.methods import default_variant
+from ..runtime.model import ModelError, RewardModel, load_model
+from ..runtime.rewards import Replay, RewardScorer, replay
 from .calibrate import subtask_starts
 from .clips import Clip, ClipError, load_clips, random_play, wrong_order_play
 from .data import Demo, load_demos
-from .intrinsic import IntrinsicConfig
-from .model import ModelError, RewardModel, load_model
-from .rewards import Replay, RewardScorer, default_variant, replay
-from .stages import RewardConfig, demo_stages
+from .task_stages import demo_stages, true_stages
 
 REPORT_FILE = "report.json"
 NEGATIVE_SEEDS = {"random": 41_000_000, "wrong_order": 41_500_000}  # layouts no other episode uses
@@ -233,7 +235,8 @@ def negative_events(
     events = []
     seen = stage_episodes or episodes
     for episode, embedded, viewed in zip(episodes, embeddings, seen, strict=True):
-        played = replay(model, embedded, scheme, variant, scorer_options, viewed.frames, episode.progress)
+        stages = true_stages(episode.progress, episode.held, scheme)
+        played = replay(model, embedded, scheme, variant, scorer_options, viewed.frames, stages)
         events.append([played.completion_events(k) for k in range(num_subtasks)])
     return events
 
@@ -277,6 +280,7 @@ def demo_quality(
     # the tracker may confirm the last subtask on the frames after, so it is replayed over
     # SETTLE_FRAMES more copies of the last frame (per-frame metrics use the demonstration's own)
     seen = demo.frames if stage_frames is None else stage_frames
+    stages = demo_stages(demo.progress, demo.labels[scheme], scheme)
     settled = replay(
         model,
         np.concatenate([embeddings, np.repeat(embeddings[-1:], SETTLE_FRAMES, 0)]),
@@ -284,13 +288,12 @@ def demo_quality(
         variant,
         scorer_options,
         np.concatenate([seen, np.repeat(seen[-1:], SETTLE_FRAMES, 0)]),
-        np.concatenate([demo.progress, np.repeat(demo.progress[-1:], SETTLE_FRAMES)]),
+        np.concatenate([stages, np.repeat(stages[-1:], SETTLE_FRAMES)]),
     )
     played = Replay(settled.parts.select(slice(0, len(embeddings))), settled.num_subtasks)  # the scorer is causal
     env = np.concatenate([demo.rewards[:1], demo.rewards]).astype(np.float64)
     goals = model.goals(scheme).goals
     ends = demo.ends[scheme]
-    stages = demo_stages(demo.progress, demo.labels[scheme], scheme)
     starts = subtask_starts(ends)
     cosine = np.stack([cosine_similarity(embeddings, goal) for goal in goals], axis=1)
     gaussians = np.stack([ground_truth_gaussian(len(demo), s, e) for s, e in zip(starts, ends, strict=True)], axis=1)

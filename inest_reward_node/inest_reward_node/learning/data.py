@@ -10,8 +10,8 @@ import torch
 from inest_common.progress import track
 from inest_sim_node.dataset import DemoDataset, Episode
 
-from .encoders import resize_frames
-from .stages import demo_stages
+from ..runtime.encoders import resize_frames
+from .task_stages import demo_stages
 
 
 @dataclass

@@ -161,8 +161,8 @@ class StreamScorer:
         resize: str = "crop",
         log: ThrottledLog | None = None,
     ) -> None:
-        if scorer.config.stage_source == "privileged":
-            raise ValueError("a privileged stage (a diagnostic) needs state vectors; served streams carry images only")
+        if scorer.needs_known_stages:
+            raise ValueError("a privileged stage (a diagnostic) needs the true stage; served streams carry images only")
         if backward not in BACKWARD_POLICIES:
             raise ValueError(f"backward_stamps must be one of {BACKWARD_POLICIES}, got {backward!r}")
         self.scorer = scorer
@@ -292,11 +292,11 @@ class StreamScorer:
         if not waiting:
             return results
         waiting.sort(key=lambda entry: entry[0])  # stable: round by round, streams in order within one
-        parts = self.scorer.score_frames(
+        parts = self.scorer.score(
             np.stack([item.frame for _, _, item in waiting]),
+            None if self.stage_camera is None else np.stack([item.stage_frame for _, _, item in waiting]),
             envs=np.array([entry[1] for entry in waiting]),
             rounds=np.array([entry[0] for entry in waiting]),
-            stage_frames=None if self.stage_camera is None else np.stack([item.stage_frame for _, _, item in waiting]),
         )
         now = time.perf_counter()
         for index, (_, stream, item) in enumerate(waiting):

@@ -2,7 +2,7 @@
 
 `--method tcc` trains the frame encoder with Temporal Cycle-Consistency (INEST-IRL and XIRL
 share it: they differ only in their goal embeddings); `--method holdr` trains the HOLD-R
-baseline, `--method reds` the REDS baseline without CLIP (reds.py; `--reds-subtasks`, default
+baseline, `--method reds` the REDS baseline without CLIP (runtime/reds.py; `--reds-subtasks`, default
 3, is the segmentation it conditions on). Afterwards the goal embeddings (REDS: its learned
 subtask embeddings), thresholds, start distances and stage classifier for 1, 3 and 6 subtasks
 (HOLD-R: 1; REDS: its own segmentation) are computed from the training demonstrations (and
@@ -31,18 +31,28 @@ import numpy as np
 import torch
 from inest_common.files import write_atomic
 from inest_common.progress import track
+from inest_sim_node.config import VIEWS
 from inest_sim_node.dataset import DatasetError, DemoDataset
 
+from ..runtime.encoders import ENCODER_KINDS, EncoderConfig
+from ..runtime.holdr import HoldRConfig
+from ..runtime.model import (
+    METHODS,
+    ModelError,
+    ModelMetadata,
+    RewardModel,
+    SubtaskGoals,
+    build_network,
+    load_model,
+    save_model,
+)
+from ..runtime.reds import RedsConfig
+from ..runtime.shaping import ShapingConfig
 from .calibrate import CalibrationConfig, calibrate
 from .clips import load_clips
 from .data import AugmentConfig, Demo, load_demos
-from .encoders import ENCODER_KINDS, EncoderConfig
-from .holdr import HoldRConfig
-from .model import METHODS, ModelError, ModelMetadata, RewardModel, SubtaskGoals, build_network, load_model, save_model
 from .objectives import OBJECTIVES
-from .reds import RedsConfig
 from .runs import prepare_run_dir
-from .shaping import ShapingConfig
 
 STATE_FILE = "train_state.pt"
 MODEL_DIR = "model"
@@ -78,8 +88,9 @@ class PretrainConfig:
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
-        if self.view not in ("ego", "allo"):
-            raise ValueError(f"unknown view {self.view!r}; expected 'ego' or 'allo'")
+        for view in (self.view, self.calibration.stage_head.view or self.view):  # the simulator's cameras
+            if view not in VIEWS:
+                raise ValueError(f"unknown view {view!r}; expected one of {VIEWS}")
         for name in ("iterations", "videos_per_batch", "frames_per_video", "pairs_per_batch", "threads"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
@@ -303,7 +314,7 @@ INTEGER_OPTIONS = (
 
 # --stage-head-OPTION: (StageHeadConfig field, type, help)
 STAGE_HEAD_OPTIONS: dict[str, tuple[str, type, str]] = {
-    "iterations": ("iterations", int, "training iterations of the pixel stage head (stage_head.py); 0: none"),
+    "iterations": ("iterations", int, "training iterations of the pixel stage head (runtime/stage_head.py); 0: none"),
     "demos": (
         "max_demos",
         int,

@@ -6,7 +6,7 @@ input size, camera view, hash of the training dataset, and per subtask scheme th
 embeddings (REDS: its learned subtask embeddings), XIRL distance scale, completion
 thresholds, the raw distance to each goal where its subtask starts (`start_distances`, for
 progress shaping), the mean embedding where each subtask starts (`start_embeddings`, for
-segment shaping and reopening), the stage classifier (`stage_classifier`, see stages.py) and
+segment shaping and reopening), the stage classifier (`stage_classifier`, see stage_classifier.py) and
 the pixel stage head's shape (`stage_head`, see stage_head.py; its weights in
 `stage_heads.safetensors`). Models calibrated before the last four existed load without them; a reward that needs them
 raises a ModelError naming the fix. Loading checks the caller's expectations (view, size, scheme).
@@ -32,15 +32,16 @@ from .encoders import EncoderConfig, build_encoder, frames_to_tensor, resize_fra
 from .holdr import HoldR, HoldRConfig
 from .reds import Reds, RedsConfig, infer_subtasks
 from .shaping import ShapingConfig
+from .stage_classifier import StageClassifier
 from .stage_head import WEIGHTS_FILE as STAGE_HEADS_FILE
 from .stage_head import StageHead
-from .stages import StageClassifier
 
 MODEL_FORMAT = "inest-reward-model"
 MODEL_FORMAT_VERSION = 1
 WEIGHTS_FILE = "weights.safetensors"
 MODEL_FILE = "model.json"
 METHODS = ("tcc", "holdr", "reds")
+TCC_SCHEMES = (1, 3, 6)  # the subtask schemes a TCC model is calibrated for
 
 
 class ModelError(RuntimeError):

@@ -1,6 +1,6 @@
 """The pixel stage head: P(stage >= s) read straight off the camera frame by a small CNN.
 
-The stage classifier of stages.py sees only the frozen 32-d embedding, and that embedding does
+The stage classifier (stage_classifier.py) sees only the frozen 32-d embedding, and that embedding does
 not keep "this block is inside the goal strip": on a trained policy's own rollouts it called
 41-43 % of true stage-0 frames "red done", which is what lets a tracker pay for blocks never
 placed. The same SmallCNN trained from scratch as a stage classifier on the same labelled
@@ -22,15 +22,13 @@ from typing import Any
 
 import numpy as np
 import torch
-from inest_common.progress import track
-from inest_sim_node.config import VIEWS
 
 from .encoders import EncoderConfig, build_encoder, frames_to_tensor, resize_frames
+from .stage_classifier import at_least
 
 WEIGHTS_FILE = "stage_heads.safetensors"
 # what a head stored without these settings was fitted with: the encoder's camera, 48 px
 STORED_BEFORE: dict[str, Any] = {"view": None, "image_size": 48}
-BOUNDARY_FRAMES = 2  # frames either side of a stage change that count as its boundary
 
 
 @dataclass(frozen=True)
@@ -57,8 +55,8 @@ class StageHeadConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "widths", tuple(self.widths))  # JSON gives a list
-        if self.view is not None and self.view not in VIEWS:
-            raise ValueError(f"stage head: unknown view {self.view!r}; expected one of {VIEWS}")
+        if self.view is not None and not self.view:
+            raise ValueError("stage head: view must name a camera (None: the encoder's)")
         if self.iterations < 0 or min(self.batch_size, self.max_demos) < 1 or self.learning_rate <= 0:
             raise ValueError("stage head: iterations >= 0, batch_size and max_demos >= 1, learning_rate > 0")
         if not 0.0 <= self.boundary_share < 1.0:
@@ -92,7 +90,7 @@ class StageHead:
 
     def at_least(self, frames: np.ndarray) -> np.ndarray:
         """(N, K + 1): column j = P(stage >= j) (column 0 is 1)."""
-        return np.flip(np.cumsum(np.flip(self.probabilities(frames), axis=1), axis=1), axis=1)
+        return at_least(self.probabilities(frames))
 
     def to_dict(self) -> dict[str, Any]:
         """What model.json keeps; the weights go to WEIGHTS_FILE."""
@@ -104,55 +102,3 @@ class StageHead:
         stored before a setting existed gets the value it was fitted with, not today's default."""
         config = {**STORED_BEFORE, **data["config"]}
         return cls(StageHeadConfig(**config), int(data["num_stages"]))
-
-
-def fit_stage_head(
-    frames: list[np.ndarray],
-    stages: list[np.ndarray],
-    num_stages: int,
-    config: StageHeadConfig,
-    progress_bar: bool = False,
-) -> StageHead:
-    """Fit on episodes of frames (any size) with each frame's true stage; batches draw every stage
-    equally often, so the rare later stages of random play count as much as the early ones.
-    Minutes per subtask scheme at 96 px on one core, hence the optional progress bar."""
-    head = StageHead(config, num_stages)
-    images = np.concatenate([resize_frames(np.asarray(episode), config.image_size) for episode in frames])
-    labels = np.concatenate(stages).astype(np.int64)
-    by_stage = [np.flatnonzero(labels == stage) for stage in range(num_stages)]
-    present = [members for members in by_stage if len(members)]
-    near_change = boundary_frames(stages)
-    rng = np.random.default_rng(config.seed)
-    torch.manual_seed(config.seed)
-    network = head.network.train()
-    optimiser = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
-    from_boundary = round(config.batch_size * config.boundary_share) if len(near_change) else 0
-    per_stage = max(1, (config.batch_size - from_boundary) // len(present))
-    iterations = track(
-        range(config.iterations), desc=f"stage head, {num_stages} stages", leave=False, disable=not progress_bar
-    )
-    for _ in iterations:
-        index = np.concatenate(
-            [rng.choice(members, per_stage) for members in present] + [rng.choice(near_change, from_boundary)]
-        )
-        logits = network(frames_to_tensor(images[index]))
-        loss = torch.nn.functional.cross_entropy(logits, torch.as_tensor(labels[index]))
-        optimiser.zero_grad()
-        loss.backward()
-        optimiser.step()
-    network.eval()
-    return head
-
-
-def boundary_frames(stages: list[np.ndarray]) -> np.ndarray:
-    """Indices into the concatenated episodes of the frames within BOUNDARY_FRAMES of a change of
-    stage inside their episode (both sides of it)."""
-    near: list[np.ndarray] = []
-    offset = 0
-    for episode in stages:
-        changes = np.flatnonzero(np.diff(episode) != 0) + 1  # the first frame of each new stage
-        for change in changes:
-            start, stop = max(0, change - BOUNDARY_FRAMES), min(len(episode), change + BOUNDARY_FRAMES)
-            near.append(offset + np.arange(start, stop))
-        offset += len(episode)
-    return np.unique(np.concatenate(near)) if near else np.zeros(0, np.int64)

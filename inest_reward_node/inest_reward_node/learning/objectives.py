@@ -13,10 +13,9 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 import torch
 
+from ..runtime.encoders import frames_to_tensor
 from .data import Demo, augment_videos, sample_goal_pairs, sample_reds_batch, sample_tcc_batch
-from .encoders import frames_to_tensor
-from .reds import pearson_distance, supervised_contrastive_loss
-from .tcc import tcc_loss
+from .losses import pearson_distance, supervised_contrastive_loss, tcc_loss
 
 if TYPE_CHECKING:
     from .pretrain import PretrainConfig
@@ -86,7 +85,7 @@ class HoldRObjective(Objective):
 
 
 class RedsObjective(Objective):
-    """REDS (no CLIP, reds.py): per batch of `reds.frames_per_batch` anchor frames,
+    """REDS (no CLIP, runtime/reds.py): per batch of `reds.frames_per_batch` anchor frames,
     epic_weight x (EPIC Pearson distance + regulariser_weight x progressive hinge)
     + contrastive_weight x SupCon of the frames' features and their subtasks' embeddings.
     Every frame is augmented on its own (a one-frame clip)."""

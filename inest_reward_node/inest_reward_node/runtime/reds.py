@@ -124,26 +124,3 @@ def cosine_similarity(features: np.ndarray, subtask_embeddings: np.ndarray) -> n
 def infer_subtasks(features: np.ndarray, subtask_embeddings: np.ndarray, bias: float) -> np.ndarray:
     """(N,) the subtask each frame is in, as REDS infers it online."""
     return np.argmax(subtask_scores(cosine_similarity(features, subtask_embeddings), bias), axis=1)
-
-
-def pearson_distance(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """EPIC's Pearson distance sqrt((1 - rho) / 2), in [0, 1]."""
-    a, b = a - a.mean(), b - b.mean()
-    rho = (a * b).mean() / (a.pow(2).mean().sqrt() * b.pow(2).mean().sqrt() + 1e-10)
-    return torch.sqrt(0.5 * (1.0 - rho.clamp(max=1.0)) + 1e-12)
-
-
-def supervised_contrastive_loss(features: torch.Tensor, labels: torch.Tensor, temperature: float) -> torch.Tensor:
-    """SupCon (Khosla et al. 2020) over L2-normalised `features`: for each anchor, the mean
-    log-probability of its same-label others among all its others; anchors alone in their label
-    are left out."""
-    features = nn.functional.normalize(features, dim=-1)
-    logits = features @ features.T / temperature
-    self_mask = torch.eye(len(features), dtype=torch.bool, device=features.device)
-    logits = logits.masked_fill(self_mask, float("-inf"))
-    log_probability = logits - torch.logsumexp(logits, dim=1, keepdim=True)
-    positives = (labels[:, None] == labels[None, :]) & ~self_mask
-    counts = positives.sum(dim=1)
-    has = counts > 0
-    mean_positive = torch.where(positives, log_probability, torch.zeros_like(log_probability)).sum(dim=1)
-    return -(mean_positive[has] / counts[has]).mean()

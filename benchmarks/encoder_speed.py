@@ -14,8 +14,8 @@ import time
 
 import numpy as np
 import torch
+from inest_reward_node.learning.config import PretrainConfig
 from inest_reward_node.learning.losses import tcc_loss
-from inest_reward_node.learning.pretrain import PretrainConfig
 from inest_reward_node.runtime.encoders import EncoderConfig, build_encoder, frames_to_tensor
 from inest_reward_node.runtime.holdr import HoldR, HoldRConfig
 

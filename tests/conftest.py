@@ -35,8 +35,8 @@ def tiny_demos(tmp_path_factory):
 @pytest.fixture(scope="session")
 def tiny_tcc_run(tiny_demos, tmp_path_factory):
     """A TCC run of a few iterations on the tiny dataset: (config, run folder)."""
-    from inest_reward_node.learning.calibrate import CalibrationConfig
-    from inest_reward_node.learning.pretrain import PretrainConfig, pretrain
+    from inest_reward_node.learning.config import CalibrationConfig, PretrainConfig
+    from inest_reward_node.learning.pretrain import pretrain
     from inest_reward_node.runtime.encoders import EncoderConfig
     from inest_reward_node.runtime.stage_head import StageHeadConfig
 

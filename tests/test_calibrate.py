@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from inest_reward_node.learning.calibrate import (
-    CalibrationConfig,
     calibrate_thresholds,
     goal_embeddings,
     highest_held,
@@ -14,6 +13,7 @@ from inest_reward_node.learning.calibrate import (
     subtask_windows,
     xirl_distance_scale,
 )
+from inest_reward_node.learning.config import CalibrationConfig
 from inest_reward_node.learning.data import load_demos
 from inest_reward_node.runtime.methods import subtask_rewards
 from inest_reward_node.runtime.model import load_model

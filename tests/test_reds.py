@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 import torch
 import yaml
+from inest_reward_node.learning.config import PretrainConfig
 from inest_reward_node.learning.data import load_demos, sample_reds_batch, segmentation
 from inest_reward_node.learning.losses import pearson_distance, supervised_contrastive_loss
 from inest_reward_node.learning.objectives import RedsObjective
-from inest_reward_node.learning.pretrain import PretrainConfig
 from inest_reward_node.runtime.config import RewardConfig
 from inest_reward_node.runtime.encoders import EncoderConfig
 from inest_reward_node.runtime.methods import default_variant

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from inest_reward_node.runtime.config import RewardConfig
 from inest_reward_node.runtime.methods import REWARD_METHODS, Batch, LearnedReward
+from inest_reward_node.runtime.model import save_model
 from inest_reward_node.runtime.rewards import RewardFunction, RewardScorer
 from inest_reward_node.runtime.trackers import TRACKERS, Evidence, StageTracker
 from test_scorer import line_model
@@ -22,11 +23,12 @@ RUNTIME_MODULES = (
 
 
 def test_the_runtime_imports_neither_the_simulator_nor_the_training_code():
-    modules = [f"inest_reward_node.runtime.{name}" for name in RUNTIME_MODULES]
+    # the runtime, and the gymnasium adapter and the reward node over it
+    modules = [f"inest_reward_node.runtime.{name}" for name in RUNTIME_MODULES] + ["inest_reward_node.gym_wrapper"]
     try:
         import rclpy  # noqa: F401
 
-        modules.append("inest_reward_node.node")  # the reward node: an adapter over the runtime alone
+        modules.append("inest_reward_node.node")
     except ImportError:
         pass
     script = (
@@ -85,3 +87,46 @@ def test_a_new_method_is_one_class_and_one_registry_line(monkeypatch):
     scorer = RewardScorer(line_model(), 3, variant="final_goal", config=RewardConfig(tracker="threshold"))
     parts = scorer.score_embeddings(np.array([[5.0, 0.0]]))
     assert parts.total[0] == pytest.approx(-15.0) and parts.bonus[0] == 0.0
+
+
+def test_the_gymnasium_wrapper_puts_the_learned_reward_on_an_environment_the_project_did_not_write():
+    gymnasium = pytest.importorskip("gymnasium")
+    pytest.importorskip("pygame")  # classic control renders with it
+    from inest_reward_node.gym_wrapper import LearnedRewardWrapper
+
+    model = line_model()  # a random encoder: the reward means nothing here, its plumbing is checked
+    env = LearnedRewardWrapper(gymnasium.make("CartPole-v1", render_mode="rgb_array"), RewardScorer(model, 3))
+    env.reset(seed=0)
+    frames, rewards = [], []
+    for _ in range(6):
+        _, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        frames.append(env.unwrapped.render())
+        rewards.append(reward)
+        assert info["env_reward"] == 1.0 and 0 <= info["learned_stage"] <= 3 and not (terminated or truncated)
+    fresh = RewardScorer(model, 3)  # the same frames through a fresh scorer: the same rewards
+    expected = [float(fresh.score(frame[None]).total[0]) for frame in frames]
+    np.testing.assert_allclose(rewards, expected, rtol=1e-6)
+    from stable_baselines3 import PPO  # one line for a stable-baselines3 user
+
+    PPO("MlpPolicy", env, n_steps=16, batch_size=16, n_epochs=1, device="cpu").learn(16)
+    env.close()
+
+
+def test_the_gymnasium_wrapper_refuses_what_it_cannot_score(tmp_path):
+    gymnasium = pytest.importorskip("gymnasium")
+    from inest_reward_node.gym_wrapper import LearnedRewardWrapper
+
+    model = line_model()
+    save_model(tmp_path / "model", model.network, model.metadata)
+    from_folder = LearnedRewardWrapper(gymnasium.make("CartPole-v1"), tmp_path / "model")  # a model folder will do
+    assert (from_folder.reward.variant, from_folder.reward.num_subtasks) == ("inest", 3)
+    scene = RewardScorer(line_model(), 3)
+    scene.stage_camera = "allo"  # as a model whose stage head reads a scene camera
+    with pytest.raises(ValueError, match="second camera"):
+        LearnedRewardWrapper(gymnasium.make("CartPole-v1"), scene)
+    with pytest.raises(ValueError, match="scores one environment"):
+        LearnedRewardWrapper(gymnasium.make("CartPole-v1"), RewardScorer(line_model(), 3, num_envs=2))
+    wrapped = LearnedRewardWrapper(gymnasium.make("CartPole-v1"), RewardScorer(line_model(), 3))
+    wrapped.reset(seed=0)
+    with pytest.raises(ValueError, match="render_mode"):
+        wrapped.step(0)

@@ -13,7 +13,7 @@ import rclpy
 from inest_agent_node.envs import LEARNED_STAGE, STAGE_FRAME_KEY, build_env
 from inest_interfaces.msg import Reward
 from inest_reward_node.learning import pretrain
-from inest_reward_node.learning.calibrate import CalibrationConfig
+from inest_reward_node.learning.config import CalibrationConfig
 from inest_reward_node.learning.data import load_demos
 from inest_reward_node.learning.quality import evaluate, load_stage_frames
 from inest_reward_node.runtime.config import RewardConfig

@@ -256,9 +256,16 @@ def test_calibration_stores_start_distances_and_a_stage_classifier(tiny_tcc_run)
         assert classifier.num_stages == scheme + 1
         labels = np.concatenate([demo_stages(d.progress, d.labels[scheme], scheme) for d in demos])
         predicted = classifier.predict(np.concatenate(embeddings))
-        # a 40-iteration encoder separates the stages only roughly: at least as often right as
-        # always naming the commonest stage (measured: 0.99 / 0.51 / 0.46 against 0.99 / 0.37 / 0.32)
-        assert np.mean(predicted == labels) >= np.bincount(labels).max() / len(labels)
+        # a 40-iteration encoder separates the stages only roughly. The fit weighs every stage alike
+        # (fit_stage_classifier), so each stage's frames are found well above chance; where no stage
+        # dominates (3 and 6 subtasks) it is also right more often than always naming the commonest
+        # stage. With 1 subtask stage 0 is 99 % of the frames and the balanced fit trades a few of
+        # them for the rare stage (measured: accuracy 0.98 / 0.53 / 0.50 against 0.99 / 0.37 / 0.32,
+        # mean recall per stage 0.99 / 0.66 / 0.64)
+        recall = [np.mean(predicted[labels == stage] == stage) for stage in np.unique(labels)]
+        assert np.mean(recall) > 1.5 / len(recall)
+        if scheme > 1:
+            assert np.mean(predicted == labels) >= np.bincount(labels).max() / len(labels)
 
 
 def test_fitting_the_stage_classifier_separates_stages_and_round_trips():

@@ -18,16 +18,28 @@ evaluation of the same step has just added):
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from inest_common.progress import track
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from tqdm import tqdm
 
+from .config import TrainConfig
 from .diagnostics import RewardDiagnostics
+from .evaluate import EvalResult
 
-if TYPE_CHECKING:
-    from .train import Trainer
+
+class Trainer(Protocol):
+    """What the callbacks use of a training run (train.Trainer)."""
+
+    config: TrainConfig
+    progress_bar: bool
+    history: list[list[float]]
+    diagnostics: list[dict[str, float]]
+
+    def evaluate(self, episodes: int) -> EvalResult: ...
+
+    def save_checkpoint(self) -> None: ...
 
 
 def due(steps: int, every: int, num_envs: int) -> bool:

@@ -38,7 +38,7 @@ from functools import cache
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from .config import SacConfig  # config.py names the learners from LEARNERS
+    from _typeshed import DataclassInstance
 
 # name -> "module:attribute" of the class, imported on first use (see _LazyLearners);
 # sbx_droq is built by _sbx_droq (a subclass of sbx.SAC)
@@ -277,8 +277,9 @@ OverlappedSAC: type = build_learner_class("sac", overlap_updates=True)
 RewardBatchingSAC: type = build_learner_class("sac", reward_batching=True)
 
 
-def learner_kwargs(name: str, sac: SacConfig, critic_net_arch: Sequence[int] | None = None) -> dict[str, Any]:
-    """Constructor keywords (besides policy, env, seed, logging) for learner `name` from the project's SAC settings.
+def learner_kwargs(name: str, sac: DataclassInstance, critic_net_arch: Sequence[int] | None = None) -> dict[str, Any]:
+    """Constructor keywords (besides policy, env, seed, logging) for learner `name` from the project's SAC settings
+    (`sac`: a config.SacConfig, which names the learners from LEARNERS).
 
     Every SacConfig field passes through under its own name (learning_rate, buffer_size,
     learning_starts, batch_size, tau, gamma, train_freq, gradient_steps, ent_coef) except:

@@ -19,8 +19,8 @@ import json
 from pathlib import Path
 
 import torch
-from inest_reward_node.learning.calibrate import CalibrationConfig
 from inest_reward_node.learning.clips import random_play, wrong_order_play
+from inest_reward_node.learning.config import CalibrationConfig
 from inest_reward_node.learning.data import load_demos
 from inest_reward_node.learning.stage_fitting import fit_stage_head
 from inest_reward_node.learning.task_stages import demo_stages, true_stages

@@ -12,67 +12,17 @@ it are its parts.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from inest_common.progress import track
 
 from ..runtime.methods import subtask_rewards
 from ..runtime.model import TCC_SCHEMES, RewardModel, SubtaskGoals
-from ..runtime.stage_head import StageHeadConfig
 from .clips import Clip, load_clips, random_play, wrong_order_play
+from .config import CalibrationConfig, PretrainConfig
 from .data import Demo, load_demos
-from .stage_fitting import StageClassifierConfig, fit_stage_classifier, fit_stage_head
+from .stage_fitting import fit_stage_classifier, fit_stage_head
 from .task_stages import demo_stages, true_stages
-
-if TYPE_CHECKING:
-    from .pretrain import PretrainConfig
-
-
-@dataclass(frozen=True)
-class CalibrationConfig:
-    """Thresholds: for each demonstration, the lowest reward over the last `hold_steps` frames of the
-    subtask (all of them must clear the threshold for the tracker to advance); the threshold is
-    the `percentile`-th of those over the training demonstrations, so about (100 - percentile) %
-    of them would complete the subtask where it really ends.
-
-    Demonstrations alone cannot show what the tracker does on behaviour they never contain: the
-    encoder maps unseen frames anywhere, and with the default model random play held the first
-    subtask's demonstration threshold in 55 % of episodes without the red block anywhere near the
-    goal. So the threshold is then raised, where needed, until at most `false_fire_rate` of
-    `random_episodes` random-policy episodes would complete the subtask on frames where it is
-    not really complete (negatives) — but never so far that fewer than `demo_pass_rate` of the
-    demonstrations would complete it before `late_frames` frames after its end.
-
-    The stage classifier (stage_fitting.py) is fitted on the demonstrations, the same random-policy
-    episodes and `wrong_order_episodes` episodes of the scripted expert placing the blocks in a
-    wrong order (inest_sim_node.expert.ScriptedExpert(order=...)), every frame labelled with the
-    simulator's true ordered progress, and on the labelled `clips` files (clips.py; e.g. a trained
-    policy's own rollouts from inest-record-clips, whose frames the classifier must not mistake
-    for progress). The pixel stage head (runtime/stage_head.py) is fitted on the same frames (the first
-    `stage_head.max_demos` demonstrations). The thresholds use random play only."""
-
-    percentile: float = 2.0
-    random_episodes: int = 50  # 0: demonstrations only
-    false_fire_rate: float = 0.1
-    demo_pass_rate: float = 0.98
-    late_frames: int = 10
-    wrong_order_episodes: int = 20  # for the stage classifier only; 0: none
-    clips: tuple[str, ...] = ()  # clip files (clips.save_clips) for the stage classifier only
-    classifier: StageClassifierConfig = field(default_factory=StageClassifierConfig)
-    stage_head: StageHeadConfig = field(default_factory=StageHeadConfig)  # the pixel one, same frames
-
-    def __post_init__(self) -> None:
-        if not 0.0 <= self.percentile <= 100.0:
-            raise ValueError(f"percentile must be in [0, 100], got {self.percentile}")
-        if self.random_episodes < 0 or not 0.0 <= self.false_fire_rate <= 1.0 or not 0.0 < self.demo_pass_rate <= 1.0:
-            raise ValueError("random_episodes must be >= 0, false_fire_rate in [0, 1], demo_pass_rate in (0, 1]")
-        if self.wrong_order_episodes < 0:
-            raise ValueError(f"wrong_order_episodes must be >= 0, got {self.wrong_order_episodes}")
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 def goal_embeddings(embeddings: Sequence[np.ndarray], ends: Sequence[np.ndarray]) -> np.ndarray:

@@ -8,24 +8,17 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, ClassVar
-
 import numpy as np
 import torch
 
 from ..runtime.encoders import frames_to_tensor
+from .config import PretrainConfig
 from .data import Demo, augment_videos, sample_goal_pairs, sample_reds_batch, sample_tcc_batch
 from .losses import pearson_distance, supervised_contrastive_loss, tcc_loss
-
-if TYPE_CHECKING:
-    from .pretrain import PretrainConfig
 
 
 class Objective:
     """A pretraining loss over batches drawn from demonstrations."""
-
-    # PretrainConfig fields this method never reads (a resumed run may change them freely)
-    unused_settings: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, config: PretrainConfig, network: torch.nn.Module) -> None:
         self.config = config
@@ -34,10 +27,6 @@ class Objective:
     def tensor(self, array: np.ndarray) -> torch.Tensor:
         """A batch array as a tensor on the network's device."""
         return torch.from_numpy(array).to(self.config.device)
-
-    @classmethod
-    def check_config(cls, config: PretrainConfig) -> None:
-        """Raise ValueError for settings this method cannot train with."""
 
     def embed_clips(self, clips: np.ndarray, generator: torch.Generator) -> torch.Tensor:
         """uint8 (B, T, S, S, 3) -> augmented (B, T, D) embeddings."""
@@ -56,13 +45,6 @@ class Objective:
 class TCCObjective(Objective):
     """TCC over `videos_per_batch` clips of `frames_per_video` frames, all ordered pairs of them."""
 
-    unused_settings = frozenset({"holdr", "reds", "pairs_per_batch"})
-
-    @classmethod
-    def check_config(cls, config: PretrainConfig) -> None:
-        if config.videos_per_batch < 2:
-            raise ValueError("TCC needs at least 2 videos per batch")
-
     def loss(self, demos: list[Demo], rng: np.random.Generator, generator: torch.Generator) -> torch.Tensor:
         config = self.config
         clips, positions = sample_tcc_batch(demos, config.videos_per_batch, config.frames_per_video, rng)
@@ -73,8 +55,6 @@ class TCCObjective(Objective):
 class HoldRObjective(Objective):
     """MSE between HOLD-R's predicted and the true step gap of `pairs_per_batch` (frame, goal) pairs,
     in units of `holdr.steps_unit`."""
-
-    unused_settings = frozenset({"reds", "videos_per_batch", "frames_per_video", "temperature"})
 
     def loss(self, demos: list[Demo], rng: np.random.Generator, generator: torch.Generator) -> torch.Tensor:
         config = self.config
@@ -89,8 +69,6 @@ class RedsObjective(Objective):
     epic_weight x (EPIC Pearson distance + regulariser_weight x progressive hinge)
     + contrastive_weight x SupCon of the frames' features and their subtasks' embeddings.
     Every frame is augmented on its own (a one-frame clip)."""
-
-    unused_settings = frozenset({"holdr", "videos_per_batch", "frames_per_video", "pairs_per_batch", "temperature"})
 
     def embed_frames(self, frames: np.ndarray, generator: torch.Generator) -> torch.Tensor:
         """uint8 (N, S, S, 3) -> augmented (N, D) features."""

@@ -23,19 +23,15 @@ import argparse
 import dataclasses
 import json
 import sys
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
 from inest_common.files import write_atomic
 from inest_common.progress import track
-from inest_sim_node.config import VIEWS
 from inest_sim_node.dataset import DatasetError, DemoDataset
 
 from ..runtime.encoders import ENCODER_KINDS, EncoderConfig
-from ..runtime.holdr import HoldRConfig
 from ..runtime.model import (
     METHODS,
     ModelError,
@@ -46,66 +42,15 @@ from ..runtime.model import (
     load_model,
     save_model,
 )
-from ..runtime.reds import RedsConfig
-from ..runtime.shaping import ShapingConfig
-from .calibrate import CalibrationConfig, calibrate
+from .calibrate import calibrate
 from .clips import load_clips
-from .data import AugmentConfig, Demo, load_demos
+from .config import PretrainConfig
+from .data import Demo, load_demos
 from .objectives import OBJECTIVES
 from .runs import prepare_run_dir
 
 STATE_FILE = "train_state.pt"
 MODEL_DIR = "model"
-
-
-@dataclass(frozen=True)
-class PretrainConfig:
-    dataset: str
-    method: str = "tcc"
-    view: str = "ego"
-    encoder: EncoderConfig = field(default_factory=EncoderConfig)
-    holdr: HoldRConfig = field(default_factory=HoldRConfig)
-    reds: RedsConfig = field(default_factory=RedsConfig)  # REDS: network, batch and loss settings
-    iterations: int = 1500
-    videos_per_batch: int = 8  # TCC: videos per batch, all ordered pairs used
-    frames_per_video: int = 32
-    pairs_per_batch: int = 64  # HOLD-R: (frame, goal) pairs per batch
-    learning_rate: float = 3e-4  # XIRL fine-tunes at 1e-5; training from scratch needs more
-    weight_decay: float = 1e-5
-    temperature: float = 1.0
-    augment: AugmentConfig = field(default_factory=AugmentConfig)
-    validate_every: int = 100
-    validation_batches: int = 4
-    checkpoint_every: int = 250
-    train_limit: int | None = None  # use only the first N demonstrations of a split (tests, quick runs)
-    valid_limit: int | None = None
-    seed: int = 0
-    threads: int = 2
-    device: str = "cpu"  # where the network trains ("cuda" on a GPU machine); calibration runs on the CPU
-    shaping: ShapingConfig = field(default_factory=ShapingConfig)
-    calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
-
-    def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
-        for view in (self.view, self.calibration.stage_head.view or self.view):  # the simulator's cameras
-            if view not in VIEWS:
-                raise ValueError(f"unknown view {view!r}; expected one of {VIEWS}")
-        for name in ("iterations", "videos_per_batch", "frames_per_video", "pairs_per_batch", "threads"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
-        if self.device != "cpu" and not self.device.startswith("cuda"):
-            raise ValueError(f"unknown device {self.device!r}; expected 'cpu' or 'cuda'")
-        OBJECTIVES[self.method].check_config(self)
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-    def settings_that_matter(self) -> set[str]:
-        """Fields that change what this method trains, which a resumed run must keep. `iterations`
-        may grow; shaping and calibration only affect the goals computed at the end."""
-        unused = OBJECTIVES[self.method].unused_settings
-        return set(self.to_dict()) - unused - {"iterations", "device", "shaping", "calibration"}
 
 
 def dataset_hash(root: str | Path) -> str:

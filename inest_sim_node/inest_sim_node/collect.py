@@ -48,8 +48,8 @@ class CollectConfig:
     episodes: int = 1000
     valid_fraction: float = 0.2  # thesis: 800 train / 200 validation
     seed: int = 0
-    image_size: int = 96
-    max_steps: int = 100
+    image_size: int = EnvConfig.image_size
+    max_steps: int = EnvConfig.max_steps
     workers: int = 2
 
     def __post_init__(self) -> None:

@@ -38,9 +38,9 @@ MODES = ("lockstep", "realtime")
 class SimNodeConfig:
     mode: str = "lockstep"
     cameras: tuple[str, ...] = VIEWS
-    image_size: int = 96
+    image_size: int = EnvConfig.image_size
     seed: int = 0  # episode i (0, 1, ...) uses seed + i unless a reset asks for a seed
-    max_steps: int = 100
+    max_steps: int = EnvConfig.max_steps
     publish_clock: bool = True  # one simulator per graph should own /clock
 
     def __post_init__(self) -> None:

@@ -33,10 +33,10 @@ class CalibrationConfig:
     of them would complete the subtask where it really ends.
 
     Demonstrations alone cannot show what the tracker does on behaviour they never contain: the
-    encoder maps unseen frames anywhere, and with the default model random play held the first
-    subtask's demonstration threshold in 55 % of episodes without the red block anywhere near the
-    goal. So the threshold is then raised, where needed, until at most `false_fire_rate` of
-    `random_episodes` random-policy episodes would complete the subtask on frames where it is
+    encoder maps unseen frames anywhere, and random play can hold a demonstration threshold
+    without the block anywhere near the goal (docs/design.md, "Calibration"). So the threshold
+    is then raised, where needed, until at most `false_fire_rate` of `random_episodes`
+    random-policy episodes would complete the subtask on frames where it is
     not really complete (negatives) — but never so far that fewer than `demo_pass_rate` of the
     demonstrations would complete it before `late_frames` frames after its end.
 

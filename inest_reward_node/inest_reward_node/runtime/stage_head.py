@@ -1,18 +1,16 @@
 """The pixel stage head: P(stage >= s) read straight off the camera frame by a small CNN.
 
-The stage classifier (stage_classifier.py) sees only the frozen 32-d embedding, and that embedding does
-not keep "this block is inside the goal strip": on a trained policy's own rollouts it called
-41-43 % of true stage-0 frames "red done", which is what lets a tracker pay for blocks never
-placed. The same SmallCNN trained from scratch as a stage classifier on the same labelled
-frames gets 2.7 / 1.4 / 0.2 % (results/reward-signal/pixel-stage/). It is fitted at calibration
-on the training demonstrations and the random, wrong-order and clip-file play that the
-embedding classifier sees, class-balanced, and stored next to the encoder (`stage_heads.safetensors`).
-`RewardConfig.stage_evidence = "pixels"` makes the classifier and confirmed trackers use it.
+The stage classifier (stage_classifier.py) sees only the frozen embedding, and that embedding
+does not keep "this block is inside the goal strip"; the same small CNN trained from scratch
+as a stage classifier on the same labelled frames does (measured in docs/reward-signal.md,
+"A stage detector that sees the pixels"). It is fitted at calibration (learning/stage_fitting.py),
+class-balanced, and stored next to the encoder (`stage_heads.safetensors`).
+`RewardConfig.stage_evidence = "pixels"` makes the confirmed tracker use it.
 
 A head may read another camera than the encoder (`view`): an egocentric frame facing the wall
-shows no block, so no detector can tell from it which blocks are placed, while the
-allocentric (scene) camera always sees the goal strip and every block. The shaping still
-comes from the encoder's camera; scoring then needs both frames of every step.
+shows no block, so no detector can tell from it which blocks are placed, while a scene camera
+always sees the goal strip and every block. The shaping still comes from the encoder's camera;
+scoring then needs both frames of every step.
 """
 
 from __future__ import annotations
@@ -35,12 +33,11 @@ STORED_BEFORE: dict[str, Any] = {"view": None, "image_size": 48}
 class StageHeadConfig:
     """Fitting the pixel stage head (Adam on class-balanced batches; minutes per scheme at 96 px)."""
 
-    # frames are downscaled to this (the encoders' 96 px: no downscaling). At 48 px the scene head
-    # missed 8 % of the held-out yellow completions, at 96 px 5 % (docs/reward-signal.md)
-    image_size: int = 96
+    # frames are downscaled to this (the encoders' size: no downscaling; docs/reward-signal.md
+    # measures 48 against 96 px)
+    image_size: int = EncoderConfig.image_size
     widths: tuple[int, ...] = (16, 32, 32, 32)
-    # 600 demonstrations and 3000 iterations, against 200 and 1500, halved the yellow completions
-    # the head missed on the selection set (docs/reward-signal.md, "The stage head's last frame")
+    # 600 demonstrations and 3000 iterations: docs/reward-signal.md, "The stage head's last frame: 600 demonstrations"
     iterations: int = 3000  # 0: no head
     batch_size: int = 128
     learning_rate: float = 1e-3

@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from inest_agent_node.envs import LEARNED_STAGE, LearnedRewardVecEnv, make_vec_env
+from inest_agent_node.envs import LEARNED_STAGE, RewardVecEnv, make_vec_env
 from inest_agent_node.evaluate import evaluate, format_table
 from inest_agent_node.learners import RewardBatchingMixin
 from inest_agent_node.train import Trainer
@@ -45,7 +45,7 @@ def test_learned_reward_replaces_the_environment_reward(tiny_tcc_run):
     _, run_dir = tiny_tcc_run
     model = load_model(run_dir / "model")
     scorer = RewardScorer(model, 3, intrinsic=IntrinsicConfig(mode="embedding"), num_envs=2)
-    env = LearnedRewardVecEnv(make_vec_env(2, EnvConfig(max_steps=20), seed=0, frames=("ego", 48)), scorer)
+    env = RewardVecEnv(make_vec_env(2, EnvConfig(max_steps=20), seed=0, frames=("ego", 48)), scorer)
     env.reset()
     rng = np.random.default_rng(0)
     ends = 0
@@ -65,10 +65,10 @@ def test_scoring_several_steps_at_once_gives_the_rewards_of_scoring_every_step(t
     _, run_dir = tiny_tcc_run
     model = load_model(run_dir / "model")
 
-    def learned_reward_env(batch_steps: int) -> LearnedRewardVecEnv:
+    def learned_reward_env(batch_steps: int) -> RewardVecEnv:
         scorer = RewardScorer(model, 3, intrinsic=IntrinsicConfig(mode="embedding"), num_envs=2)
         venv = make_vec_env(2, EnvConfig(max_steps=20), seed=0, frames=("ego", 48))
-        env = LearnedRewardVecEnv(venv, scorer, batch_steps=batch_steps)
+        env = RewardVecEnv(venv, scorer, batch_steps=batch_steps)
         env.reset()
         return env
 
@@ -88,9 +88,9 @@ def test_scoring_several_steps_at_once_gives_the_rewards_of_scoring_every_step(t
     assert LEARNED_STAGE not in infos[0]
     batched.score_waiting()
     taken += batched.take_rewards(100)
-    assert infos[0][LEARNED_STAGE] == every_step.scorer.trackers[0].completed
+    assert infos[0][LEARNED_STAGE] == every_step.reward.trackers[0].completed
     np.testing.assert_allclose(np.array(taken), np.array(expected), rtol=1e-4, atol=1e-5)
-    for ours, reference in zip(batched.scorer.memories, every_step.scorer.memories, strict=True):
+    for ours, reference in zip(batched.reward.memories, every_step.reward.memories, strict=True):
         np.testing.assert_allclose(ours.contents(), reference.contents(), rtol=1e-4, atol=1e-5)
 
 
@@ -150,16 +150,16 @@ def test_resumed_inest_run_keeps_its_exploration_memories(tiny_tcc_run, tmp_path
     first = Trainer(config, tmp_path / "run", progress_bar=False)
     first.train()
     assert isinstance(first.model, RewardBatchingMixin) and not first.model.held_transitions
-    sizes = [len(memory) for memory in first.learned_env.scorer.memories]
+    sizes = [len(memory) for memory in first.reward_env.reward.memories]
     assert sum(sizes) == 200  # every frame of both environments went into a subtask memory
     results = json.loads((tmp_path / "run" / "results.json").read_text())
     assert results["coverage"]["samples"] == 20  # every 10th vector step of 2 environments
     assert (tmp_path / "run" / "coverage.png").exists()
     resumed = Trainer(dataclasses.replace(config, total_steps=300), tmp_path / "run", resume=True, progress_bar=False)
-    assert [len(memory) for memory in resumed.learned_env.scorer.memories] == sizes
+    assert [len(memory) for memory in resumed.reward_env.reward.memories] == sizes
     assert resumed.model.replay_buffer.size() == 100  # every transition, none left waiting
     np.testing.assert_array_equal(
-        resumed.learned_env.scorer.memories[0].contents(), first.learned_env.scorer.memories[0].contents()
+        resumed.reward_env.reward.memories[0].contents(), first.reward_env.reward.memories[0].contents()
     )
 
 

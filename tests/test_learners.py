@@ -151,7 +151,7 @@ def test_same_seed_same_policy(name):
 
 
 class LateRewards(VecEnvWrapper):
-    """Stands in for LearnedRewardVecEnv with batch_steps: NaN rewards from step(), the real ones
+    """Stands in for RewardVecEnv with batch_steps: NaN rewards from step(), the real ones
     once `batch_steps` steps have gathered (take_rewards), or at once with score_waiting()."""
 
     def __init__(self, venv: VecEnv, batch_steps: int) -> None:

@@ -7,7 +7,15 @@ import json
 import numpy as np
 import pytest
 from inest_agent_node.diagnostics import RewardDiagnostics
-from inest_agent_node.envs import LEARNED_STAGE, TRUE_PROGRESS, StageObservationVecEnv, build_env, make_vec_env
+from inest_agent_node.envs import (
+    LEARNED_STAGE,
+    TRUE_PROGRESS,
+    RewardVecEnv,
+    StageObservationVecEnv,
+    build_env,
+    make_vec_env,
+)
+from inest_agent_node.rewards import EnvironmentReward
 from inest_agent_node.train import Trainer
 from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 from inest_sim_node.observation import stage_fields, stage_observation
@@ -68,8 +76,8 @@ def test_approach_oracle_shares_each_blocks_third_so_finishing_pays_most():
 
 
 def test_stage_wrapper_reports_the_stage_of_each_terminal_observation_and_starts_episodes_at_zero():
-    venv = make_vec_env(2, EnvConfig(max_steps=5), seed=0)
-    env = StageObservationVecEnv(venv, 3, TRUE_PROGRESS)
+    venv = RewardVecEnv(make_vec_env(2, EnvConfig(max_steps=5), seed=0), EnvironmentReward(2))
+    env = StageObservationVecEnv(venv, 3)  # the environment's reward: its stage is the true progress
     observations = env.reset()
     assert observations.shape == (2, 28) and env.observation_space.contains(observations[0])
     for _ in range(5):
@@ -109,7 +117,7 @@ def test_learned_reward_training_sees_the_trackers_stage_and_records_diagnostics
     trainer = Trainer(config, tmp_path / "run", progress_bar=False)
     assert trainer.model.observation_space.shape == (28,)
     trainer.train()
-    scorer = trainer.learned_env.scorer
+    scorer = trainer.reward_env.reward
     stored = trainer.model.replay_buffer.observations[: trainer.model.replay_buffer.size(), 0]
     assert stored.shape[1] == 28 and np.all(stored[:, 21:25].sum(axis=1) == 1)  # always exactly one stage
     assert scorer.num_envs == 2
@@ -129,3 +137,20 @@ def test_evaluation_env_follows_the_training_observation(tiny_tcc_run):
     assert env.observation_space.shape == (28,)
     with pytest.raises(ValueError, match="needs `model`"):
         build_env(TrainConfig(reward="topic", intrinsic=IntrinsicConfig(mode="none")), 2, evaluation=True)
+
+
+def test_the_environments_reward_is_a_reward_function_like_the_learned_ones():
+    from inest_reward_node.runtime.rewards import RewardFunction
+
+    reward = EnvironmentReward(2)
+    assert isinstance(reward, RewardFunction) and reward.camera is None  # it renders no frames
+    env = RewardVecEnv(make_vec_env(2, EnvConfig(max_steps=30, reward="approach"), seed=3), reward)
+    env.reset()
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        _, rewards, _, infos = env.step(rng.uniform(-1, 1, (2, 3)).astype(np.float32))
+        assert rewards.tolist() == pytest.approx([info["env_reward"] for info in infos])
+        assert [info[LEARNED_STAGE] for info in infos] == [info[TRUE_PROGRESS] for info in infos]
+        assert [info["shaping_reward"] for info in infos] == pytest.approx(rewards.tolist())
+    with pytest.raises(ValueError, match="env_rewards and known_stages"):
+        reward.score(None)

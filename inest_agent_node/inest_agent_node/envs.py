@@ -1,11 +1,13 @@
-"""Vectorised training environments whose reward comes from a learned reward model, and the
-policy's stage observation on top of any vector env.
+"""Vectorised training environments whose reward comes from a RewardFunction (rewards.py: a
+learned reward model or the simulator's own), and the policy's stage observation on top of any
+vector env.
 
-The reward is computed from each environment's camera frame after the step (the transition's
-next frame, including the last frame of an episode, which auto-reset would otherwise replace),
-all N frames in one encoder forward pass. Every step's infos carry the same keys whoever
-computed the reward (these envs or the graph's): TRUE_PROGRESS, and for learned rewards
-LEARNED_STAGE and the reward's parts (SHAPING, BONUS, INTRINSIC).
+A learned reward is computed from each environment's camera frame after the step (the
+transition's next frame, including the last frame of an episode, which auto-reset would
+otherwise replace), all N frames in one encoder forward pass. Every step's infos carry the same
+keys whoever computed the reward (these envs or the graph's): TRUE_PROGRESS, LEARNED_STAGE (the
+reward's stage: the true progress for the environment's reward) and the reward's parts
+(SHAPING, BONUS, INTRINSIC).
 """
 
 from __future__ import annotations
@@ -19,20 +21,19 @@ from typing import Any
 import gymnasium
 import numpy as np
 from inest_reward_node.learning.task_stages import privileged_stages
-from inest_reward_node.runtime.intrinsic import IntrinsicConfig, NoveltyMemory
-from inest_reward_node.runtime.model import load_model
-from inest_reward_node.runtime.rewards import RewardScorer
+from inest_reward_node.runtime.rewards import RewardFunction, Steps
 from inest_sim_node.observation import stage_observation, stage_observation_space
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
 
 from inest_sim_node import EnvConfig, SweepToTopEnv
 
-from .config import TrainConfig, reward_scheme
+from .config import TrainConfig
+from .rewards import build_reward
 
 FRAME_KEY = "camera_frame"
 STAGE_FRAME_KEY = "stage_camera_frame"  # the stage head's camera, when it is not the encoder's
 TRUE_PROGRESS = "progress"  # blocks placed in order (the simulator's, 0..3)
-LEARNED_STAGE = "learned_stage"  # subtasks the learned reward counts as done (0..num_subtasks)
+LEARNED_STAGE = "learned_stage"  # subtasks the reward counts as done (0..num_subtasks)
 SHAPING, BONUS, INTRINSIC = "shaping_reward", "subtask_bonus", "intrinsic_reward"
 
 
@@ -79,11 +80,12 @@ class WaitingStep:
     stage_frames: np.ndarray | None  # (N, H, W, 3) of the stage head's camera, when it is another
     states: np.ndarray  # (N, state_dim), the transition's next states (terminal ones at episode ends)
     dones: np.ndarray  # (N,)
+    env_rewards: np.ndarray  # (N,) the environments' own rewards
     infos: list[dict[str, Any]]
 
 
-class LearnedRewardVecEnv(VecEnvWrapper):
-    """Replaces the environments' reward by the learned one; the oracle stays in info["env_reward"].
+class RewardVecEnv(VecEnvWrapper):
+    """Replaces the environments' reward by a RewardFunction's; the oracle stays in info["env_reward"].
 
     With `batch_steps` > 1 the frames of that many vector steps are scored together: one encoder
     pass over batch_steps x N frames costs about 40 % less per frame on 2 cores than N at a time,
@@ -96,13 +98,13 @@ class LearnedRewardVecEnv(VecEnvWrapper):
     of a step's infos are filled in when it is scored.
     """
 
-    def __init__(self, venv: VecEnv, scorer: RewardScorer, record_every: int = 10, batch_steps: int = 1) -> None:
+    def __init__(self, venv: VecEnv, reward: RewardFunction, record_every: int = 10, batch_steps: int = 1) -> None:
         super().__init__(venv)
-        if scorer.num_envs != venv.num_envs:
-            raise ValueError(f"scorer tracks {scorer.num_envs} environments, the vector env has {venv.num_envs}")
+        if reward.num_envs != venv.num_envs:
+            raise ValueError(f"the reward tracks {reward.num_envs} environments, the vector env has {venv.num_envs}")
         if batch_steps < 1:
             raise ValueError(f"batch_steps must be at least 1, got {batch_steps}")
-        self.scorer = scorer
+        self.reward = reward
         self.record_every = record_every
         self.batch_steps = batch_steps
         self.steps = 0  # vector steps scored
@@ -116,21 +118,19 @@ class LearnedRewardVecEnv(VecEnvWrapper):
         self.deferred_rewards_accepted = True
 
     def exploration_state(self) -> dict[str, np.ndarray]:
-        """Novelty memories and the coverage record: what a resumed run must not forget."""
-        state = {f"memory_{i}": memory.contents() for i, memory in enumerate(self.scorer.memories)}
+        """The reward's novelty memories and the coverage record: what a resumed run must not forget."""
+        state = self.reward.exploration_state()
         if self.visited:
             state["visited"] = np.concatenate(self.visited)
         return state
 
     def restore_exploration(self, state: dict[str, np.ndarray]) -> None:
-        capacity = self.scorer.intrinsic.capacity
-        memories = sorted((key for key in state if key.startswith("memory_")), key=lambda key: int(key[7:]))
-        self.scorer.memories = [NoveltyMemory.restored(state[key], capacity) for key in memories]
+        self.reward.restore_exploration({key: value for key, value in state.items() if key != "visited"})
         self.visited = [state["visited"]] if "visited" in state else []
 
     def reset(self) -> np.ndarray:
         self.score_waiting()  # frames of the episodes being cut off still earn their rewards
-        self.scorer.reset()
+        self.reward.reset()
         return self.venv.reset()
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -143,14 +143,14 @@ class LearnedRewardVecEnv(VecEnvWrapper):
 
     def step_wait(self):
         observations, env_rewards, dones, infos = self.venv.step_wait()
-        frames = np.stack([info.pop(FRAME_KEY) for info in infos])
+        frames = np.stack([info.pop(FRAME_KEY) for info in infos]) if FRAME_KEY in infos[0] else None
         stage_frames = np.stack([info.pop(STAGE_FRAME_KEY) for info in infos]) if STAGE_FRAME_KEY in infos[0] else None
         states = np.stack(
             [info.get("terminal_observation", obs) for info, obs in zip(infos, observations, strict=True)]
         )
         for index, info in enumerate(infos):
             info["env_reward"] = float(env_rewards[index])
-        self.waiting.append(WaitingStep(frames, stage_frames, states, dones.copy(), infos))
+        self.waiting.append(WaitingStep(frames, stage_frames, states, dones.copy(), np.asarray(env_rewards), infos))
         if len(self.waiting) >= self.batch_steps:
             self.score_waiting()
         if self.batch_steps == 1:
@@ -161,21 +161,23 @@ class LearnedRewardVecEnv(VecEnvWrapper):
         """Score every waiting step: one encoder pass and one novelty search for all of them."""
         if not self.waiting:
             return
-        count, steps = self.num_envs, len(self.waiting)
-        states = np.concatenate([step.states for step in self.waiting])
-        known = privileged_stages(states, self.scorer.num_subtasks) if self.scorer.needs_known_stages else None
-        scored = self.scorer.score(
-            np.concatenate([step.frames for step in self.waiting]),
-            None if self.scorer.stage_camera is None else np.concatenate([s.stage_frames for s in self.waiting]),
-            envs=np.tile(np.arange(count), steps),
-            rounds=np.repeat(np.arange(steps), count),
-            episode_ends=np.concatenate([step.dones for step in self.waiting]),
-            states=states,
-            known_stages=known,
+        count, waiting, reward = self.num_envs, self.waiting, self.reward
+        states = np.concatenate([step.states for step in waiting])
+        scored = reward.score(
+            None if reward.camera is None else np.concatenate([step.frames for step in waiting]),
+            None if reward.stage_camera is None else np.concatenate([step.stage_frames for step in waiting]),
+            Steps(
+                envs=np.tile(np.arange(count), len(waiting)),
+                rounds=np.repeat(np.arange(len(waiting)), count),
+                episode_ends=np.concatenate([step.dones for step in waiting]),
+                states=states,
+                known_stages=privileged_stages(states, reward.num_subtasks) if reward.needs_known_stages else None,
+                env_rewards=np.concatenate([step.env_rewards for step in waiting]),
+            ),
         )
-        for position, step in enumerate(self.waiting):
+        for position, step in enumerate(waiting):
             parts = scored.select(slice(position * count, (position + 1) * count))
-            if self.steps % self.record_every == 0:
+            if self.steps % self.record_every == 0 and parts.embeddings.shape[1]:
                 self.visited.append(parts.embeddings)
             self.steps += 1
             for index, info in enumerate(step.infos):
@@ -191,17 +193,17 @@ class LearnedRewardVecEnv(VecEnvWrapper):
 
 
 class StageObservationVecEnv(VecEnvWrapper):
-    """Appends the reward's stage (one-hot of `infos[stage_key]`) and the stage block's offsets
+    """Appends the reward's stage (one-hot of `infos[LEARNED_STAGE]`) and the stage block's offsets
     in the robot frame to every state observation (observation.stage_observation).
 
-    A stage is known only once the step's reward is: the wrapped env must fill `stage_key` in
-    every step's infos (a LearnedRewardVecEnv scoring each step as it happens, the graph's
-    rewards, or the simulator's true progress for the oracle). Episodes start in stage 0.
+    A stage is known only once the step's reward is: the wrapped env must fill LEARNED_STAGE in
+    every step's infos (a RewardVecEnv scoring each step as it happens, or the graph's rewards;
+    for the environment's reward it is the simulator's true progress). Episodes start in stage 0.
     """
 
-    def __init__(self, venv: VecEnv, num_subtasks: int, stage_key: str) -> None:
+    def __init__(self, venv: VecEnv, num_subtasks: int) -> None:
         super().__init__(venv, observation_space=stage_observation_space(venv.observation_space, num_subtasks))
-        self.num_subtasks, self.stage_key = num_subtasks, stage_key
+        self.num_subtasks, self.stage_key = num_subtasks, LEARNED_STAGE
 
     def reset(self) -> np.ndarray:
         observations = self.venv.reset()
@@ -280,39 +282,23 @@ def build_env(
     evaluation: bool = False,
     wrap_simulators: Callable[[VecEnv], VecEnv] | None = None,
 ) -> VecEnv:
-    """The vector env `config` trains on: in-process simulators, the learned reward, the stage
-    observation. `evaluation`: the same observation path, without the intrinsic bonus (its
-    memories belong to training) and with the reward node's model for the topic reward.
+    """The vector env `config` trains on: in-process simulators, its reward (rewards.build_reward),
+    the stage observation. `evaluation`: the same observation path, without the intrinsic bonus
+    (its memories belong to training) and with the reward node's model for the topic reward.
     `wrap_simulators` wraps the simulators' vector env, whose infos still hold the camera frames
     of a learned reward (FRAME_KEY), before anything else sees it."""
     wrap_simulators = wrap_simulators or (lambda venv: venv)
     num_envs = num_envs or config.num_envs
     seed = config.seed if seed is None else seed
+    reward = build_reward(config, num_envs, evaluation)
+    frames = None if reward.camera is None else (reward.camera, reward.image_size)
     env_config = EnvConfig(view=config.view, reward=config.oracle)
-    reward = variant = config.reward
-    if reward == "topic":
-        if not evaluation:
-            raise ValueError("the topic reward comes from inest_reward_node: train over the graph (inest-agent-node)")
-        if config.observation == "stage" and not config.model:
-            raise ValueError(
-                "the stage observation over the graph needs `model` (the reward node's model), "
-                "so that in-process evaluations track the stage as the reward node does"
-            )
-        variant = None  # the model's own variant for `subtasks` (rewards.default_variant), the reward node's default
-    if reward == "env" or (evaluation and config.observation == "state"):
-        venv = wrap_simulators(make_vec_env(num_envs, env_config, seed))
-        return with_observation(venv, config, TRUE_PROGRESS)
-    scheme = reward_scheme(reward, config.subtasks)
-    model = load_model(config.model, view=config.view, scheme=scheme)
-    intrinsic = IntrinsicConfig(mode="none") if evaluation else config.intrinsic
-    scorer = RewardScorer(model, scheme, variant, intrinsic, num_envs, config=config.learned_reward)
-    frames = (config.view, model.image_size)
-    venv = wrap_simulators(make_vec_env(num_envs, env_config, seed, frames, scorer.stage_camera))
+    venv = wrap_simulators(make_vec_env(num_envs, env_config, seed, frames, reward.stage_camera))
     batch_steps = 1 if evaluation else config.reward_batch_steps
-    return with_observation(LearnedRewardVecEnv(venv, scorer, batch_steps=batch_steps), config, LEARNED_STAGE)
+    return with_observation(RewardVecEnv(venv, reward, batch_steps=batch_steps), config)
 
 
-def with_observation(venv: VecEnv, config: TrainConfig, stage_key: str) -> VecEnv:
+def with_observation(venv: VecEnv, config: TrainConfig) -> VecEnv:
     if config.observation == "state":
         return venv
-    return StageObservationVecEnv(venv, config.stage_subtasks, stage_key)
+    return StageObservationVecEnv(venv, config.stage_subtasks)

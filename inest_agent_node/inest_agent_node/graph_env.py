@@ -131,14 +131,13 @@ class GraphVecEnv(VecEnv):
 
     def step_info(self, status: EpisodeStatus, reward: Reward) -> dict[str, Any]:
         """A step's info: the simulator's reward and score, and the learned reward's stage and parts."""
-        info: dict[str, Any] = {
-            "env_reward": status.env_reward,
-            "score": status.score,
-            TRUE_PROGRESS: round(status.score * NUM_BLOCKS),
-        }
+        progress = round(status.score * NUM_BLOCKS)
+        info: dict[str, Any] = {"env_reward": status.env_reward, "score": status.score, TRUE_PROGRESS: progress}
         if self.learned_reward:
             info[LEARNED_STAGE], info[INTRINSIC] = reward.subtask, reward.intrinsic_bonus
             info[SHAPING], info[BONUS] = reward.distance_reward, reward.subtask_bonus
+        else:  # the environment's reward: its stage is the true progress
+            info[LEARNED_STAGE] = progress
         return info
 
     def reset(self) -> np.ndarray:

@@ -35,10 +35,14 @@ import warnings
 from collections import deque
 from collections.abc import Iterator, Mapping, Sequence
 from functools import cache
-from typing import TYPE_CHECKING, Any
+from typing import Any, ClassVar, Protocol
 
-if TYPE_CHECKING:
-    from _typeshed import DataclassInstance
+
+class DataclassInstance(Protocol):
+    """Any dataclass instance (what `dataclasses.asdict` takes)."""
+
+    __dataclass_fields__: ClassVar[dict[str, Any]]
+
 
 # name -> "module:attribute" of the class, imported on first use (see _LazyLearners);
 # sbx_droq is built by _sbx_droq (a subclass of sbx.SAC)

@@ -25,7 +25,7 @@ from inest_reward_node.runtime.model import ModelError
 from rclpy.node import Node
 
 from .config import TrainConfig
-from .envs import LEARNED_STAGE, TRUE_PROGRESS, with_observation
+from .envs import with_observation
 from .evaluate import evaluate_vec_env, format_table
 from .graph_env import GraphVecEnv
 from .learners import learner_class
@@ -73,7 +73,7 @@ class AgentNode(Node):
     def run(self) -> None:
         settings, config = self.settings, self.train_config
         graph = GraphVecEnv(self, list(settings.namespaces), config.reward == "topic", settings.step_timeout)
-        env = with_observation(graph, config, LEARNED_STAGE if graph.learned_reward else TRUE_PROGRESS)
+        env = with_observation(graph, config)
         try:
             if settings.mode == "evaluate":
                 policy = settings.policy or str(Path(settings.out) / CHECKPOINT_DIR / "model.zip")

@@ -34,7 +34,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, unwrap_vec_w
 
 from .callbacks import training_callbacks
 from .config import REWARDS, TrainConfig
-from .envs import ConcurrentUpdatesVecEnv, LearnedRewardVecEnv, build_env
+from .envs import ConcurrentUpdatesVecEnv, RewardVecEnv, build_env
 from .evaluate import EvalResult, evaluate_vec_env, format_table, plot_learning_curve
 from .learners import (
     LEARNERS,
@@ -102,12 +102,12 @@ class Trainer:
         overlap_updates = config.overlap_updates
         if overlap_updates and env is None:
             self.env = ConcurrentUpdatesVecEnv(self.env)  # the updates run while the in-process envs step
-        self.learned_env: LearnedRewardVecEnv | None = unwrap_vec_wrapper(self.env, LearnedRewardVecEnv)
+        self.reward_env: RewardVecEnv | None = unwrap_vec_wrapper(self.env, RewardVecEnv)
         self.eval_env = build_env(config, min(EVAL_ENVS, config.final_eval_episodes), evaluation=True)
         checkpoint = self.run_dir / CHECKPOINT_DIR
         if config.learner.startswith("sbx"):
             configure_jax_threads(config.threads)
-        batching = not overlap_updates and self.learned_env is not None and self.learned_env.batch_steps > 1
+        batching = not overlap_updates and self.reward_env is not None and self.reward_env.batch_steps > 1
         algorithm = build_learner_class(
             config.learner,
             overlap_updates,
@@ -127,8 +127,8 @@ class Trainer:
                 self.trained_seconds = read_run_file(
                     checkpoint / TIMING_FILE, lambda path: float(read_json(path)["training_s"])
                 )
-            if self.learned_env is not None and (checkpoint / EXPLORATION_FILE).exists():
-                self.learned_env.restore_exploration(read_run_file(checkpoint / EXPLORATION_FILE, read_npz))
+            if self.reward_env is not None and (checkpoint / EXPLORATION_FILE).exists():
+                self.reward_env.restore_exploration(read_run_file(checkpoint / EXPLORATION_FILE, read_npz))
         else:
             self.model = algorithm(
                 "MlpPolicy",
@@ -167,8 +167,8 @@ class Trainer:
         self.session_start = now
         timing = json.dumps({"training_s": self.trained_seconds})
         write_atomic(checkpoint / TIMING_FILE, lambda path: path.write_text(timing))
-        if self.learned_env is not None:
-            state = self.learned_env.exploration_state()
+        if self.reward_env is not None:
+            state = self.reward_env.exploration_state()
 
             def save_exploration(path: Path) -> None:
                 with open(path, "wb") as handle:
@@ -201,15 +201,15 @@ class Trainer:
             "reward_diagnostics": self.diagnostics,
             "config": config.to_dict(),
         }
-        if self.learned_env is not None and self.learned_env.visited:
-            coverage = measure_coverage(np.concatenate(self.learned_env.visited))
+        if self.reward_env is not None and self.reward_env.visited:
+            coverage = measure_coverage(np.concatenate(self.reward_env.visited))
             plot_coverage(coverage, self.run_dir / "coverage.png", f"{config.reward} reward: visited embeddings")
             results["coverage"] = {
                 "samples": coverage.samples,
                 "grid_cells_occupied": coverage.occupied_cells,
                 "grid_fraction_occupied": coverage.occupied_fraction,
                 "unique_states": coverage.unique_states,
-                "recorded_every_vector_steps": self.learned_env.record_every,
+                "recorded_every_vector_steps": self.reward_env.record_every,
             }
         # whole or not at all: a grid (experiments.py) counts a run with results.json as finished
         write_atomic(self.run_dir / RESULTS_FILE, lambda path: path.write_text(json.dumps(results, indent=2) + "\n"))

@@ -44,23 +44,49 @@ class RewardParts:
         return RewardParts(*(getattr(self, field.name)[rows] for field in fields(self)))
 
 
+@dataclass
+class Steps:
+    """What the caller knows of the scored frames besides their pixels; each reward reads what it
+    needs and none needs all. Without `envs` the frames are one per environment, in order."""
+
+    envs: np.ndarray | None = None  # row i belongs to environment envs[i]; an environment's rows in order
+    rounds: np.ndarray | None = None  # ascending: the vector step of each row (see score_embeddings)
+    episode_ends: np.ndarray | None = None  # envs[i] starts a new episode after row i
+    states: np.ndarray | None = None  # the environments' state vectors (the state novelty bonus)
+    known_stages: np.ndarray | None = None  # the true stage, where someone knows it (needs_known_stages)
+    env_rewards: np.ndarray | None = None  # the environment's own reward (the oracle's)
+
+
 @runtime_checkable
 class RewardFunction(Protocol):
     """What every reward implements, so that whoever steps environments never asks which reward it
     holds: N environments (streams) at once, one frame each per step.
 
-    `stage_camera` names a second camera whose frame of the same step the reward also needs (a
-    scene camera beside the policy's), or None. `reset(env_indices)` starts new episodes in those
-    environments (None: all). `score` takes the (N, H, W, 3) uint8 frames in environment order,
-    and `stage_frames` of `stage_camera`, and returns the reward and its parts."""
+    `camera` names the camera whose frames `score` takes (None: it reads none), at best rendered
+    `image_size` pixels square (frames of any size are resized), `stage_camera` a
+    second camera whose frame of the same step it also needs (a scene camera beside the
+    policy's), or None; `needs_known_stages` whether each step's true stage must be told
+    (`Steps.known_stages`). `reset(env_indices)` starts new episodes in those environments (None:
+    all). `score` takes the (N, H, W, 3) uint8 frames in environment order, `stage_frames` of
+    `stage_camera` and what else is known of the steps, and returns the reward and its parts.
+    `exploration_state` is what a resumed run must give back to `restore_exploration`."""
 
     num_envs: int
     num_subtasks: int
+    camera: str | None
+    image_size: int
     stage_camera: str | None
+    needs_known_stages: bool
 
     def reset(self, env_indices: Iterable[int] | int | None = None) -> None: ...
 
-    def score(self, frames: np.ndarray, stage_frames: np.ndarray | None = None) -> RewardParts: ...
+    def score(
+        self, frames: np.ndarray | None, stage_frames: np.ndarray | None = None, steps: Steps | None = None
+    ) -> RewardParts: ...
+
+    def exploration_state(self) -> dict[str, np.ndarray]: ...
+
+    def restore_exploration(self, state: dict[str, np.ndarray]) -> None: ...
 
 
 class RewardScorer:
@@ -113,6 +139,7 @@ class RewardScorer:
             self.classifier = self.goals.require_stage_classifier()
         # what the tracker reads its stage from: "pixels", "embedding", or None (no stage evidence)
         self.evidence = "pixels" if self.stage_head else "embedding" if self.classifier else None
+        self.camera, self.image_size = model.view, model.image_size
         # the camera the stage head reads when it is not the encoder's (StageHeadConfig.view)
         head_view = self.stage_head.config.view if self.stage_head else None
         self.stage_camera = head_view if head_view not in (None, model.view) else None
@@ -151,25 +178,28 @@ class RewardScorer:
             self.steps_since_switch[index] = -1
 
     def score(
-        self,
-        frames: np.ndarray,
-        stage_frames: np.ndarray | None = None,
-        *,
-        envs: np.ndarray | None = None,
-        rounds: np.ndarray | None = None,
-        episode_ends: np.ndarray | None = None,
-        states: np.ndarray | None = None,
-        known_stages: np.ndarray | None = None,
+        self, frames: np.ndarray, stage_frames: np.ndarray | None = None, steps: Steps | None = None
     ) -> RewardParts:
         """frames: (N, H, W, 3) uint8, one per environment in environment order, or rows placed by
-        `envs` (see score_embeddings); `stage_frames` the same steps seen by `stage_camera` when the
-        stage head reads another camera."""
+        `steps.envs` (see score_embeddings); `stage_frames` the same steps seen by `stage_camera`
+        when the stage head reads another camera."""
         if self.stage_camera is None:
             stage_frames = frames
         elif stage_frames is None or len(stage_frames) != len(frames):
             raise ValueError(f"the stage head reads the {self.stage_camera!r} camera: pass its frame of every step")
+        steps = steps or Steps()
         embeddings, evidence = self.model.embed(frames), self.stage_evidence(stage_frames)
-        return self.score_embeddings(embeddings, states, envs, rounds, episode_ends, evidence, known_stages)
+        return self.score_embeddings(
+            embeddings, steps.states, steps.envs, steps.rounds, steps.episode_ends, evidence, steps.known_stages
+        )
+
+    def exploration_state(self) -> dict[str, np.ndarray]:
+        """The novelty memories, which a resumed run must not forget."""
+        return {f"memory_{i}": memory.contents() for i, memory in enumerate(self.memories)}
+
+    def restore_exploration(self, state: dict[str, np.ndarray]) -> None:
+        memories = sorted((key for key in state if key.startswith("memory_")), key=lambda key: int(key[7:]))
+        self.memories = [NoveltyMemory.restored(state[key], self.intrinsic.capacity) for key in memories]
 
     def stage_evidence(self, frames: np.ndarray) -> np.ndarray | None:
         """(N, K + 1) P(stage >= j) of each frame (of the head's camera) from the pixel stage

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .images import fit_square
-from .rewards import RewardScorer
+from .rewards import RewardScorer, Steps
 
 BACKWARD_POLICIES = ("reset", "reject")
 
@@ -295,8 +295,7 @@ class StreamScorer:
         parts = self.scorer.score(
             np.stack([item.frame for _, _, item in waiting]),
             None if self.stage_camera is None else np.stack([item.stage_frame for _, _, item in waiting]),
-            envs=np.array([entry[1] for entry in waiting]),
-            rounds=np.array([entry[0] for entry in waiting]),
+            Steps(envs=np.array([entry[1] for entry in waiting]), rounds=np.array([entry[0] for entry in waiting])),
         )
         now = time.perf_counter()
         for index, (_, stream, item) in enumerate(waiting):

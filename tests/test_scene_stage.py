@@ -19,7 +19,7 @@ from inest_reward_node.learning.quality import evaluate, load_stage_frames
 from inest_reward_node.runtime.config import RewardConfig
 from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 from inest_reward_node.runtime.model import load_model
-from inest_reward_node.runtime.rewards import RewardScorer
+from inest_reward_node.runtime.rewards import RewardScorer, Steps
 from inest_reward_node.runtime.serving import StreamScorer
 from inest_reward_node.runtime.stage_head import StageHeadConfig
 from test_graph import reward_node_args, sim_node_args
@@ -132,9 +132,7 @@ def test_a_stream_waits_for_the_scene_frame_of_the_same_stamp(tiny_tcc_run, scen
     streams.submit_stage(0, 1, allo[0])
     scored = streams.flush()
     assert [frame.stamp for frame in scored] == [1, 2]
-    expected = RewardScorer(model, 3, config=PIXELS).score(
-        ego[:2], envs=np.zeros(2, int), rounds=np.arange(2), stage_frames=allo[:2]
-    )
+    expected = RewardScorer(model, 3, config=PIXELS).score(ego[:2], allo[:2], Steps(np.zeros(2, int), np.arange(2)))
     np.testing.assert_allclose([frame.total for frame in scored], expected.total, rtol=1e-5)
     streams.submit(0, 3, ego[2])  # its scene frame never comes: dropped at the episode's reset, counted
     assert streams.flush() == []

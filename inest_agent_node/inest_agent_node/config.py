@@ -12,6 +12,7 @@ import yaml
 from inest_reward_node.learning.runs import merge_settings
 from inest_reward_node.runtime.config import RewardConfig
 from inest_reward_node.runtime.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.methods import REWARD_METHODS
 from inest_reward_node.runtime.model import TCC_SCHEMES
 from inest_sim_node.config import ORACLE_REWARDS
 from inest_sim_node.observation import STATE_OBSERVATIONS
@@ -21,14 +22,16 @@ from .learners import LEARNERS
 
 LEARNER_NAMES = tuple(LEARNERS)
 
-REWARDS = ("env", "xirl", "holdr", "reds", "inest", "topic")  # topic: served by inest_reward_node (graph only)
-SUBTASK_REWARDS = ("inest", "reds", "topic")  # the rewards scored with `subtasks` subtasks (the others: 1)
+# env: the simulator's own; the learned methods (runtime.methods.REWARD_METHODS); topic: served by
+# inest_reward_node (graph only)
+REWARDS = ("env", *REWARD_METHODS, "topic")
 
 
 def reward_scheme(reward: str, subtasks: int) -> int:
     """The subtask scheme a learned `reward` is scored with: `subtasks` for the staged rewards,
     1 for XIRL and HOLD-R (one goal)."""
-    return subtasks if reward in SUBTASK_REWARDS else 1
+    method = REWARD_METHODS.get(reward)
+    return 1 if method is not None and method.single_goal else subtasks
 
 
 def reject_unknown(data: dict[str, Any], known: set[str], what: str) -> None:

@@ -57,6 +57,7 @@ class LearnedReward:
     name: ClassVar[str]
     model_kind: ClassVar[str] = "tcc"  # the kind of model the method needs (ModelMetadata.method)
     infers_stage: ClassVar[bool] = False  # the method says which subtask a frame is in (`inferred_stages`)
+    single_goal: ClassVar[bool] = False  # scored against the final goal alone: one subtask
     uses_segments = False  # whether `distance` needs each frame's segment closeness
     bonus = 0.0
 
@@ -108,6 +109,7 @@ class XirlReward(LearnedReward):
     """-scale * d to the single (final) goal embedding."""
 
     name = "xirl"
+    single_goal = True
 
     @classmethod
     def check(cls, model: RewardModel, scheme: int) -> None:
@@ -124,6 +126,7 @@ class HoldrReward(LearnedReward):
 
     name = "holdr"
     model_kind = "holdr"
+    single_goal = True
 
     @staticmethod
     def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 import torch
+import yaml
 from inest_common.files import RunFileError, read_json, read_run_file, write_atomic
 from inest_reward_node.learning.coverage import measure_coverage, plot_coverage
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings, prepare_run_dir
@@ -249,8 +250,11 @@ INTEGER_FLAGS = (
 
 def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", required=True, help="run folder")
+    parser.add_argument("--out", help="run folder (required unless --print-config)")
     parser.add_argument("--config", help="YAML file of training settings (see inest_agent_node/config/train.yaml)")
+    parser.add_argument(
+        "--print-config", action="store_true", help="print every setting, defaults included, as YAML and exit"
+    )
     parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     parser.add_argument("--reward", choices=REWARDS)
     parser.add_argument("--model", help="reward model folder (a pretraining run's model/)")
@@ -288,6 +292,8 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         "--gradient-steps", type=int, help="gradient steps per vector step (sac.gradient_steps; the replay ratio)"
     )
     args = parser.parse_args(argv)
+    if args.out is None and not args.print_config:
+        parser.error("the following arguments are required: --out")
     overrides: dict[str, Any] = {
         name: getattr(args, name)
         for name in (
@@ -320,6 +326,9 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
 def main(argv: list[str] | None = None) -> int:
     try:
         config, args = parse_args(argv)
+        if args.print_config:
+            print(yaml.safe_dump(config.to_dict(), sort_keys=False), end="")
+            return 0
         trainer = Trainer(config, args.out, resume=args.resume)
         result = trainer.train()
     except (ModelError, FileExistsError, ValueError) as error:

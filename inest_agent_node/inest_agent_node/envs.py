@@ -150,7 +150,7 @@ class RewardVecEnv(VecEnvWrapper):
         )
         for index, info in enumerate(infos):
             info["env_reward"] = float(env_rewards[index])
-        self.waiting.append(WaitingStep(frames, stage_frames, states, dones.copy(), np.asarray(env_rewards), infos))
+        self.waiting.append(WaitingStep(frames, stage_frames, states, dones.copy(), env_rewards.copy(), infos))
         if len(self.waiting) >= self.batch_steps:
             self.score_waiting()
         if self.batch_steps == 1:

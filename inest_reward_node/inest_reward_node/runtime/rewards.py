@@ -1,9 +1,9 @@
 """Scoring frames with a learned reward: the one interface every reward implements
 (`RewardFunction`), the learned rewards' scorer (`RewardScorer`) and replaying an episode.
 
-`RewardFunction` is what the training environments, the reward node and the grid call, whoever
-computes the reward: `reset(env_indices)` starts new episodes, `score(frames, stage_frames)`
-scores one frame per environment. `RewardScorer` implements it for every method of
+`RewardFunction` is what the training environments, the gymnasium wrapper and the reward node
+call, whoever computes the reward: `reset(env_indices)` starts new episodes, `score(frames,
+stage_frames, steps)` scores one frame per environment. `RewardScorer` implements it for every method of
 methods.py; the stage comes from a tracker of trackers.py, chosen by `RewardConfig`, or, as a
 diagnostic only, from the caller (`stage_source="privileged"`: `known_stages`); a method that
 infers the subtask itself (reds) tells the tracker its own inference.

@@ -154,3 +154,16 @@ def test_the_environments_reward_is_a_reward_function_like_the_learned_ones():
         assert [info["shaping_reward"] for info in infos] == pytest.approx(rewards.tolist())
     with pytest.raises(ValueError, match="env_rewards and known_stages"):
         reward.score(None)
+
+
+def test_the_environments_reward_scored_several_steps_at_once_is_each_steps_own():
+    env = RewardVecEnv(
+        make_vec_env(2, EnvConfig(max_steps=30, reward="approach"), seed=3), EnvironmentReward(2), batch_steps=3
+    )
+    env.accept_deferred_rewards()  # what learners.RewardBatchingMixin does
+    env.reset()
+    rng = np.random.default_rng(1)
+    given = [
+        [info["env_reward"] for info in env.step(rng.uniform(-1, 1, (2, 3)).astype(np.float32))[3]] for _ in range(6)
+    ]
+    np.testing.assert_allclose(np.array(env.take_rewards(10)), np.array(given), rtol=1e-6)  # no step's overwritten

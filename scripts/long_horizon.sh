@@ -35,7 +35,6 @@ declare -A METHODS=(
   [inest3-embedding-state-obs]="--reward inest --model $MODEL --intrinsic embedding --stage-evidence embedding --observation state --total-steps 300000 $THREE_FRAMES"
   [inest3-pixel-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
   [inest3-pixel-embedding]="--reward inest --model $PIXEL_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
-  [inest3-pixel-classifier-none]="--reward inest --model $PIXEL_MODEL --intrinsic none --stage-evidence pixels --tracker classifier --total-steps 300000 $THREE_FRAMES"
   [inest3-scene-none]="--reward inest --model $SCENE_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
   [inest3-scene-embedding]="--reward inest --model $SCENE_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
   [inest3-scene96-embedding]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"

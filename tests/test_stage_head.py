@@ -1,5 +1,5 @@
 """The pixel stage head: learns a stage that only the pixels show, is saved with the model, and feeds
-the classifier trackers when `stage_evidence` is "pixels"."""
+the confirmed tracker when `stage_evidence` is "pixels"."""
 
 from __future__ import annotations
 

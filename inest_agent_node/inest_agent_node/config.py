@@ -34,6 +34,33 @@ def reward_scheme(reward: str, subtasks: int) -> int:
     return 1 if method is not None and method.single_goal else subtasks
 
 
+def read_yaml_mapping(path: str | Path, what: str, empty_ok: bool = False) -> dict[str, Any]:
+    """A YAML file's mapping (`empty_ok`: an empty file is an empty one); a file that cannot be
+    read, is not YAML or holds no mapping is one ValueError naming it. `what`: what the mapping
+    holds, for the message."""
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except OSError as error:
+        raise ValueError(f"cannot read {path}: {error.strerror}") from None
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise ValueError(f"{path} is not valid YAML{where}: {getattr(error, 'problem', None) or error}") from None
+    if data is None and empty_ok:
+        return {}
+    if not isinstance(data, dict):
+        raise ValueError(f"{path} must hold a mapping of {what}")
+    return data
+
+
+def nested(cls: type, values: Any, what: str) -> Any:
+    """A nested settings dataclass from its YAML mapping (a dataclass already made passes through)."""
+    if not isinstance(values, dict):
+        return values
+    reject_unknown(values, {f.name for f in fields(cls)}, what)
+    return cls(**values)
+
+
 def reject_unknown(data: dict[str, Any], known: set[str], what: str) -> None:
     unknown = sorted(set(data) - known, key=str)
     if unknown:
@@ -79,7 +106,7 @@ class TrainConfig:
     subtasks: int = 3  # inest: 1, 3 or 6; reds: the segmentation its model was trained on
     view: str = "ego"
     intrinsic: IntrinsicConfig = field(default_factory=IntrinsicConfig)
-    # how the learned reward shapes and tracks subtasks (stages.RewardConfig: shaping, tracker,
+    # how the learned reward shapes and tracks subtasks (runtime.config.RewardConfig: shaping, tracker,
     # stage_source "privileged" for the true-stage diagnostic, intrinsic_cap)
     learned_reward: RewardConfig = field(default_factory=RewardConfig)
     # stage: the state plus the reward's stage one-hot and the stage block's offsets (Markov in the
@@ -88,7 +115,7 @@ class TrainConfig:
     oracle: str = "approach"  # the simulator's reward (reward env): progress | approach (+ reach and hold)
     learner: str = "sbx_sac"  # learners.LEARNERS: sac | sbx_sac | crossq | sbx_crossq | sbx_droq
     num_envs: int = 4
-    # vector steps whose frames are scored in one encoder pass (speed only; see envs.LearnedRewardVecEnv);
+    # vector steps whose frames are scored in one encoder pass (speed only; see envs.RewardVecEnv);
     # the stage observation needs each step's stage at once, so only 1 goes with it
     reward_batch_steps: int = 1
     total_steps: int = 200_000
@@ -163,23 +190,24 @@ class TrainConfig:
         values = dict(data)
         if values.get("reward", "inest") != "inest" and "intrinsic" not in values:
             values["intrinsic"] = IntrinsicConfig(mode="none")  # the bonus belongs to the inest reward
-        if isinstance(values.get("intrinsic"), dict):
-            values["intrinsic"] = IntrinsicConfig(**values["intrinsic"])
-        if isinstance(values.get("learned_reward"), dict):
-            values["learned_reward"] = RewardConfig(**values["learned_reward"])
-        if isinstance(values.get("sac"), dict):
-            sac = dict(values["sac"])
-            if "net_arch" in sac:
-                sac["net_arch"] = tuple(sac["net_arch"])
-            values["sac"] = SacConfig(**sac)
-        return cls(**values)
+        if isinstance(values.get("sac"), dict) and "net_arch" in values["sac"]:
+            values["sac"] = {**values["sac"], "net_arch": tuple(values["sac"]["net_arch"])}
+        try:
+            values["intrinsic"] = nested(
+                IntrinsicConfig, values.get("intrinsic", IntrinsicConfig()), "intrinsic setting(s)"
+            )
+            values["learned_reward"] = nested(
+                RewardConfig, values.get("learned_reward", RewardConfig()), "learned_reward setting(s)"
+            )
+            values["sac"] = nested(SacConfig, values.get("sac", SacConfig()), "sac setting(s)")
+            return cls(**values)
+        except TypeError as error:  # a setting of the wrong type, e.g. a string where a number belongs
+            raise ValueError(f"a training setting has the wrong type ({error})") from None
 
     @classmethod
     def from_yaml(cls, path: str | Path, overrides: dict[str, Any] | None = None) -> TrainConfig:
         """Settings from a YAML file, then `overrides` (command-line flags) on top."""
-        data = yaml.safe_load(Path(path).read_text()) or {}
-        if not isinstance(data, dict):
-            raise ValueError(f"{path} must hold a mapping of training settings")
+        data = read_yaml_mapping(path, "training settings", empty_ok=True)
         return cls.from_dict(merge_settings(data, overrides or {}))
 
 
@@ -335,14 +363,4 @@ class GridConfig:
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> GridConfig:
-        try:
-            data = yaml.safe_load(Path(path).read_text())
-        except OSError as error:
-            raise ValueError(f"cannot read the grid file {path}: {error.strerror}") from None
-        except yaml.YAMLError as error:
-            mark = getattr(error, "problem_mark", None)
-            where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-            raise ValueError(f"{path} is not valid YAML{where}: {getattr(error, 'problem', None) or error}") from None
-        if not isinstance(data, dict):
-            raise ValueError(f"{path} must hold a mapping of grid settings (methods, seeds, total_steps, config, out)")
-        return cls.from_dict(data)
+        return cls.from_dict(read_yaml_mapping(path, "grid settings (methods, seeds, total_steps, config, out)"))

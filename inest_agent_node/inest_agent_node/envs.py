@@ -136,7 +136,7 @@ class RewardVecEnv(VecEnvWrapper):
     def step_async(self, actions: np.ndarray) -> None:
         if self.batch_steps > 1 and not self.deferred_rewards_accepted:
             raise RuntimeError(
-                f"LearnedRewardVecEnv(batch_steps={self.batch_steps}) returns NaN until a batch is scored: "
+                f"RewardVecEnv(batch_steps={self.batch_steps}) returns NaN until a batch is scored: "
                 "only a reward-batching learner (learners.RewardBatchingMixin) may step it; use batch_steps=1"
             )
         self.venv.step_async(actions)

@@ -166,7 +166,7 @@ class OverlappedUpdatesMixin:
 
 
 class RewardBatchingMixin:
-    """For a LearnedRewardVecEnv that scores several vector steps' frames at once.
+    """For a RewardVecEnv that scores several vector steps' frames at once.
 
     A transition waits until its learned reward is known (at most batch_steps - 1 vector steps),
     then goes into the replay buffer exactly as the learner would have stored it; the updates
@@ -175,7 +175,7 @@ class RewardBatchingMixin:
     and `BaseAlgorithm._excluded_save_params` (the held transitions are not saved: a checkpoint
     calls `settle_rewards` first). stable-baselines3 hands `_store_transition` fresh arrays
     every step, so holding them is safe. The env must offer `take_rewards(at_most)` and
-    `score_waiting()` (envs.LearnedRewardVecEnv).
+    `score_waiting()` (envs.RewardVecEnv).
     """
 
     held_transitions: deque[tuple[Any, ...]]

@@ -253,7 +253,9 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     parser.add_argument("--out", help="run folder (required unless --print-config)")
     parser.add_argument("--config", help="YAML file of training settings (see inest_agent_node/config/train.yaml)")
     parser.add_argument(
-        "--print-config", action="store_true", help="print every setting, defaults included, as YAML and exit"
+        "--print-config",
+        action="store_true",
+        help="print every setting these arguments give, defaults included, as YAML and exit",
     )
     parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     parser.add_argument("--reward", choices=REWARDS)

@@ -1,7 +1,10 @@
 """A learned reward on any gymnasium environment with camera frames: the adapter a
 stable-baselines3 or CleanRL user needs, one line over the runtime.
 
-    env = LearnedRewardWrapper(gymnasium.make("CartPole-v1", render_mode="rgb_array"), "runs/pretrain/model")
+    env = LearnedRewardWrapper(gymnasium.make("CartPole-v1", render_mode="rgb_array"), "RUN/model")
+
+for a model that reads one camera; a model whose stage head reads a second one also needs
+`stage_camera=`.
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ from their header fields alone, in constant time, so a flood of them cannot dela
 the stamp policy is serving.py's.
 
 Parameters: the RewardNodeConfig fields, `intrinsic.*` (IntrinsicConfig) and `reward.*`
-(stages.RewardConfig: shaping, tracker, stage_source, stage_evidence, hold_steps,
+(runtime.config.RewardConfig: shaping, tracker, stage_source, stage_evidence, hold_steps,
 stage_confidence, confirm_window, confirm_steps, instant_confidence, intrinsic_cap;
 `reward.intrinsic_cap:=.inf` is no cap). `reward.stage_source:=privileged`
 is refused: the node sees images only, not the simulator's progress.
@@ -159,7 +159,7 @@ class RewardNode(Node):
     def on_image(self, stream: int, msg: Image, stage: bool = False) -> None:
         """A frame of the encoder's camera, or (`stage`) of the stage head's second camera."""
         received = time.perf_counter()
-        config, size = self.config, self.streams.scorer.model.image_size
+        config, size = self.config, self.streams.scorer.image_size
         try:
             frame = decode_image(
                 msg.encoding, msg.height, msg.width, msg.step, msg.data,

@@ -21,7 +21,7 @@ holdr for HOLD-R models, reds for REDS models on their own segmentation; a REDS 
 Per subtask k (report key `per_subtask`, one entry per subtask, in order):
 - spearman_shaping_within: Spearman of the shaping term (RewardParts.distance: the reward
   without subtask bonus and without intrinsic bonus) against time, over the frames whose TRUE
-  stage is k (k subtasks really done, stages.demo_stages: the frame on which subtask k counts
+  stage is k (k subtasks really done, task_stages.demo_stages: the frame on which subtask k counts
   is already stage k + 1, as it is for the reward, which pays that frame the bonus and shapes
   it towards the next goal); median and mean over the demonstrations that have at least 3
   such frames. spearman_embedding_within: the same for the negated raw

@@ -4,13 +4,14 @@ A model folder holds `weights.safetensors` (tensors only, nothing executable) an
 `model.json`: method, encoder config, the baselines' network settings (`holdr`, `reds`),
 input size, camera view, hash of the training dataset, and per subtask scheme the goal
 embeddings (REDS: its learned subtask embeddings), XIRL distance scale, completion
-thresholds, the raw distance to each goal where its subtask starts (`start_distances`, for
-progress shaping), the mean embedding where each subtask starts (`start_embeddings`, for
-segment shaping and reopening), the stage classifier (`stage_classifier`, see stage_classifier.py) and
-the pixel stage head's shape (`stage_head`, see stage_head.py; its weights in
-`stage_heads.safetensors`). Models calibrated before the last four existed load without them; a reward that needs them
-raises a ModelError naming the fix. Loading checks the caller's expectations (view, size, scheme).
-`ModelMetadata` is model.json (less its format header) read into typed fields.
+thresholds, the raw distance to each goal where its subtask starts (`start_distances`, a
+record of the calibration), the mean embedding where each subtask starts (`start_embeddings`,
+for segment shaping and the confirmed tracker's reopening), the stage classifier
+(`stage_classifier`, see stage_classifier.py) and the pixel stage head's shape (`stage_head`,
+see stage_head.py; its weights in `stage_heads.safetensors`). Models calibrated before the last
+four existed load without them; a reward that needs them raises a ModelError naming the fix.
+Loading checks the caller's expectations (view, size, scheme). `ModelMetadata` is model.json
+(less its format header) read into typed fields.
 """
 
 from __future__ import annotations
@@ -113,14 +114,6 @@ class SubtaskGoals:
             None if head is None else StageHead.from_dict(head),  # untrained until load_model fills it
         )
 
-    def require_start_distances(self) -> list[float]:
-        if self.start_distances is None:
-            raise ModelError(
-                f"this model has no per-subtask start distances for its {len(self.goals)}-subtask goals "
-                f"(calibrated before progress shaping existed); {RECALIBRATE_HINT}"
-            )
-        return self.start_distances
-
     def require_start_embeddings(self) -> np.ndarray:
         if self.start_embeddings is None:
             raise ModelError(
@@ -133,7 +126,7 @@ class SubtaskGoals:
         if self.stage_classifier is None:
             raise ModelError(
                 f"this model has no stage classifier for its {len(self.goals)}-subtask goals "
-                f"(calibrated before the classifier tracker existed); {RECALIBRATE_HINT}"
+                f"(calibrated before stage classifiers existed); {RECALIBRATE_HINT}"
             )
         return self.stage_classifier
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .images import fit_square
-from .rewards import RewardScorer, Steps
+from .rewards import RewardFunction, Steps
 
 BACKWARD_POLICIES = ("reset", "reject")
 
@@ -155,7 +155,7 @@ class StreamScorer:
 
     def __init__(
         self,
-        scorer: RewardScorer,
+        scorer: RewardFunction,
         max_pending: int = 4,
         backward: str = "reset",
         resize: str = "crop",
@@ -187,7 +187,7 @@ class StreamScorer:
         Only the newest few are kept: a partner that never comes must not grow the store."""
         self.arrivals += 1
         kept = self.stage_frames[stream]
-        kept[stamp] = fit_square(frame, self.scorer.model.image_size, self.resize)
+        kept[stamp] = fit_square(frame, self.scorer.image_size, self.resize)
         while len(kept) > 4 * self.max_pending:
             del kept[next(iter(kept))]
             self.stats.dropped["unpaired"] += 1
@@ -230,7 +230,7 @@ class StreamScorer:
         frames when a backward stamp starts a new one), usually nothing."""
         self.arrivals += 1
         arrived = time.perf_counter() if received is None else received
-        frame = fit_square(frame, self.scorer.model.image_size, self.resize)
+        frame = fit_square(frame, self.scorer.image_size, self.resize)
         newest = self.newest[stream]
         republished, scored = False, []
         if stamp == 0:

@@ -17,6 +17,7 @@ from inest_reward_node.runtime.model import load_model
 from small_training import small_train_config
 
 from inest_agent_node import record_clips
+from inest_agent_node.config import TrainConfig
 
 
 def test_clip_files_round_trip_and_refuse_what_does_not_fit(tmp_path):
@@ -62,6 +63,12 @@ def test_bad_clip_input_gets_one_line_and_saves_nothing(tiny_tcc_run, tmp_path, 
     pretrain_config, reward_run = tiny_tcc_run
     assert record_clips.main([str(tmp_path / "nowhere"), "--out", str(tmp_path / "c.npz")]) == 2
     assert "does not exist" in capsys.readouterr().err
+    oracle = tmp_path / "oracle"  # a run whose evaluations render no camera
+    (oracle / "checkpoint").mkdir(parents=True)
+    (oracle / "checkpoint" / "model.zip").write_bytes(b"")
+    (oracle / "config.json").write_text(json.dumps(TrainConfig.from_dict({"reward": "env"}).to_dict()))
+    assert record_clips.main([str(oracle), "--out", str(tmp_path / "c.npz")]) == 2
+    assert "score no camera frames" in capsys.readouterr().err and not (tmp_path / "c.npz").exists()
     shutil.copytree(reward_run, tmp_path / "run")
     before = (tmp_path / "run" / "model" / "model.json").read_text()
     argv = [pretrain_config.dataset, "--out", str(tmp_path / "run"), "--resume", "--image-size", "48"]

@@ -66,6 +66,7 @@ def test_bad_parameters_are_one_line_and_exit_2_on_every_node(tmp_path):
         (["inest-agent-node", "-p", "subtasks:=4"], ["subtasks must be one of (1, 3, 6), got 4"]),
         (["inest-agent-node", "-p", "sac.batch_size:=0"], ["sac.batch_size must be positive, got 0"]),
         (["inest-agent-node", "-p", "step_timeout:=0"], ["step_timeout must be positive (seconds), got 0.0"]),
+        (["inest-agent-node", "-p", "reward:=inest", "-p", "model:=m"], ["reward 'inest' is scored in process"]),
         (
             ["inest-agent-node", "--params-file", str(tmp_path / "params.yaml")],
             ["inest_agent_node has no parameter total_step (did you mean total_steps?)"],

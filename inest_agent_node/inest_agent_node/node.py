@@ -55,6 +55,11 @@ class AgentNodeConfig:
             raise ValueError(f"episodes must be at least 1, got {self.episodes}")
 
 
+# the rewards a graph brings: the reward node's, scored there with the reward runtime and received
+# on each stream's `reward` topic, or the simulators' own in their episode status
+GRAPH_REWARDS = ("topic", "env")
+
+
 def agent_train_defaults() -> TrainConfig:
     """The agent node's training defaults: the reward node's reward, whose intrinsic bonus the
     reward node adds, and one torch thread with updates overlapping the step (the other core
@@ -69,6 +74,11 @@ class AgentNode(Node):
         self.train_config = TrainConfig.from_dict(
             {**declare_dataclass(self, agent_train_defaults()), "num_envs": len(self.settings.namespaces)}
         )
+        if self.train_config.reward not in GRAPH_REWARDS:
+            raise ValueError(
+                f"reward {self.train_config.reward!r} is scored in process by inest-train; over the graph the "
+                "reward is the reward node's (topic) or the simulators' own (env)"
+            )
 
     def run(self) -> None:
         settings, config = self.settings, self.train_config

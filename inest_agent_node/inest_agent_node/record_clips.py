@@ -27,6 +27,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from .config import TrainConfig
 from .envs import FRAME_KEY, TRUE_PROGRESS, build_env
 from .learners import configure_jax_threads, learner_class
+from .rewards import build_reward
 from .train import CHECKPOINT_DIR
 
 CLIP_SEED = 42_000_000  # layouts no demonstration, training, evaluation or calibration episode uses
@@ -59,8 +60,11 @@ class ClipRecorder(VecEnvWrapper):
 def record(run_dir: Path, episodes: int, seed: int, deterministic: bool, progress_bar: bool = True) -> list[Clip]:
     """`episodes` episodes of the run's final policy (its checkpoint), ENVS at a time."""
     config = TrainConfig.from_dict(json.loads((run_dir / "config.json").read_text()))
-    if config.reward in ("env", "topic"):
-        raise ValueError(f"{run_dir} trained on the {config.reward!r} reward: record clips of a learned-reward run")
+    if build_reward(config, ENVS, evaluation=True).camera is None:
+        raise ValueError(
+            f"{run_dir}: its evaluations score no camera frames (the {config.reward!r} reward, the "
+            f"{config.observation!r} observation): record clips of a run whose reward reads a camera"
+        )
     recorders: list[ClipRecorder] = []
 
     def keep(venv: VecEnv) -> VecEnv:

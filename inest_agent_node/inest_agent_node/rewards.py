@@ -38,7 +38,9 @@ class EnvironmentReward:
     def reset(self, env_indices: Iterable[int] | int | None = None) -> None:
         self.stages[slice(None) if env_indices is None else np.asarray(env_indices)] = 0
 
-    def score(self, frames: np.ndarray | None, stage_frames: np.ndarray | None = None, steps: Steps | None = None):
+    def score(
+        self, frames: np.ndarray | None, stage_frames: np.ndarray | None = None, steps: Steps | None = None
+    ) -> RewardParts:
         if steps is None or steps.env_rewards is None or steps.known_stages is None:
             raise ValueError("the environment's reward needs each step's env_rewards and known_stages")
         rewards = np.asarray(steps.env_rewards, dtype=np.float64)

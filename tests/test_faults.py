@@ -301,3 +301,16 @@ def test_the_subtask_reaches_num_subtasks_in_the_reward_and_the_monitor_shows_do
         monitor.destroy_node()
     finally:
         rclpy.shutdown()
+
+
+def test_inest_train_refuses_a_missing_model_before_writing_anything(tmp_path):
+    config = Path(__file__).resolve().parents[1] / "inest_agent_node" / "config" / "train.yaml"
+    out = tmp_path / "run"
+    process = subprocess.run(
+        [str(BIN / "inest-train"), "--config", str(config), "--model", str(tmp_path / "nowhere"), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert process.returncode == 2 and process.stderr.count("\n") == 1, process.stderr
+    assert "nowhere" in process.stderr and not out.exists()  # no config.json left to refuse the next try

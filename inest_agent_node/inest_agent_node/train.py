@@ -97,7 +97,6 @@ class Trainer:
         self.diagnostics: list[dict[str, float]] = []  # reward diagnostics per evaluation interval
         self.trained_seconds = 0.0  # up to the last checkpoint, over earlier sessions too
         self.session_start = time.monotonic()
-        self.check_run_dir(resume)
         torch.set_num_threads(config.threads)
         self.env = env if env is not None else build_env(config)
         overlap_updates = config.overlap_updates
@@ -105,6 +104,7 @@ class Trainer:
             self.env = ConcurrentUpdatesVecEnv(self.env)  # the updates run while the in-process envs step
         self.reward_env: RewardVecEnv | None = unwrap_vec_wrapper(self.env, RewardVecEnv)
         self.eval_env = build_env(config, min(EVAL_ENVS, config.final_eval_episodes), evaluation=True)
+        self.check_run_dir(resume)  # written only once the model and the environments have loaded
         checkpoint = self.run_dir / CHECKPOINT_DIR
         if config.learner.startswith("sbx"):
             configure_jax_threads(config.threads)

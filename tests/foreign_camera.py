@@ -62,12 +62,13 @@ def main() -> None:
     node = rclpy.create_node("foreign_camera")
     publisher = node.create_publisher(Image, "camera/image_raw", 10)
     rewards: dict[int, Reward] = {}
-    rejected, reasons = [0], []
+    rejected, rejected_total, reasons = [0], [0], []
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for status in msg.status:
             values = {item.key: item.value for item in status.values}
             rejected[0] += int(values.get("rejected", 0))
+            rejected_total[0] = max(rejected_total[0], int(values.get("total_rejected", 0)))
             if values.get("last_rejection"):
                 reasons.append(values["last_rejection"])
 
@@ -111,7 +112,14 @@ def main() -> None:
     spin_until(node, lambda: rejected[0] >= 3 or not args.malformed, 10, "diagnostics counting the rejections")
     with open(args.out, "w") as handle:
         json.dump(
-            {"rewards": received, "after_reset": after_reset, "rejected": rejected[0], "reasons": reasons}, handle
+            {
+                "rewards": received,
+                "after_reset": after_reset,
+                "rejected": rejected[0],
+                "rejected_total": rejected_total[0],
+                "reasons": reasons,
+            },
+            handle,
         )
     node.destroy_node()
     rclpy.shutdown()

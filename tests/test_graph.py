@@ -77,7 +77,7 @@ def test_a_foreign_camera_gets_rewards_that_match_the_library_frame_by_frame(gra
     # the reset service restarted the tracker
     assert received["after_reset"]["subtask"] == 0 and received["after_reset"]["bonus"] == 0.0
     # three malformed images: rejected, counted, the reason logged, and the node kept serving
-    assert received["rejected"] == 3
+    assert received["rejected"] == 3 and received["rejected_total"] == 3  # per report, and the running total
     log = graph.log("reward")
     for reason in ("unsupported encoding 'mono16'", "step 143 is shorter", "no pixel data"):
         assert reason in log

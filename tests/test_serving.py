@@ -84,6 +84,13 @@ def test_stale_frames_are_rejected_and_overload_drops_the_oldest():
         streams.submit(0, stamp, FRAMES[stamp])
     assert streams.stats.dropped == {"overflow": 1}
     assert [r.stamp for r in streams.flush()] == [7, 8]
+    first = streams.take_stats()  # a report's counts, and their running totals
+    assert (first["rejected"], first["dropped"], first["scored"]) == (1, 1, 3)
+    assert (first["total_rejected"], first["total_dropped_overflow"], first["total_scored"]) == (1, 1, 3)
+    streams.submit(0, 9, FRAMES[9])
+    streams.flush()
+    second = streams.take_stats()  # a reader that missed the first report still has every count
+    assert (second["scored"], second["rejected"], second["total_scored"], second["total_rejected"]) == (1, 0, 4, 1)
 
 
 def test_reset_restarts_the_tracker_and_accepts_a_restarted_clock():

@@ -175,6 +175,7 @@ class StreamScorer:
         # the stage head's second camera: its frames by stamp, waiting for their partners
         self.stage_frames: list[dict[int, np.ndarray]] = [{} for _ in range(scorer.num_envs)]
         self.stats = ServingStats()
+        self.totals: Counter[str] = Counter()  # every count since the start, for a reader that missed a report
         self.arrivals = 0  # frames submitted so far, of either camera: what a callback brought
 
     @property
@@ -330,6 +331,8 @@ class StreamScorer:
         self.newest[stream] = None
 
     def take_stats(self) -> dict[str, float | int | str]:
+        """The counts and latencies since the last call, and every count's running total (`total_*`)."""
         summary = self.stats.summary()
         self.stats = ServingStats()
-        return summary
+        self.totals.update({key: value for key, value in summary.items() if type(value) is int})
+        return summary | {f"total_{key}": count for key, count in sorted(self.totals.items())}

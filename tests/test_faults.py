@@ -149,6 +149,9 @@ def test_the_supervisor_restarts_with_back_off_and_stops_a_node_that_keeps_dying
     assert dying.outcome.status == 1
     assert "sim0 keeps dying (exit status 3 after 2 restarts)" in dying.outcome.message
     assert (tmp_path / "sim0.log").read_text().count("run of sim0") == 3  # the first run and two restarts
+    supervise("sim0", 3, RespawnPolicy(max_respawns=2, delay=0.05))  # launched again into the same folder
+    kept = (tmp_path / "sim0.log").read_text()
+    assert kept.count("run of sim0") == 6 and kept.count("--- inest-launch: started again") == 1  # nothing lost
     refusing = supervise("reward", 2, RespawnPolicy(delay=0.05))
     assert refusing.outcome == Outcome(2, "reward refused its configuration: run of reward")  # never restarted
     assert supervise("agent", 0, RespawnPolicy()).outcome == Outcome(0, "")  # the run is over

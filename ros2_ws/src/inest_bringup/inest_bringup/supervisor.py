@@ -131,16 +131,21 @@ class Supervisor:
         self.outcome: Outcome | None = None
 
     def start_all(self) -> None:
+        """Start every node; a log an earlier launch left (a killed run being resumed, say) is
+        continued after a separator line, never truncated."""
         for child in self.children.values():
-            self.start(child, "w")
+            if child.log.is_file() and child.log.stat().st_size:
+                with open(child.log, "a") as log:
+                    log.write(f"\n--- inest-launch: started again {time.strftime('%Y-%m-%d %H:%M:%S')} ---\n")
+            self.start(child)
 
-    def start(self, child: Child, mode: str) -> None:
-        with open(child.log, mode) as log:  # the child keeps its own copy of the descriptor
+    def start(self, child: Child, restart: bool = False) -> None:
+        with open(child.log, "a") as log:  # the child keeps its own copy of the descriptor
             child.process = subprocess.Popen(
                 child.command, stdout=log, stderr=subprocess.STDOUT, env=self.env, start_new_session=True
             )
         child.started, child.due = time.monotonic(), None
-        verb = "restarted" if mode == "a" else "started"
+        verb = "restarted" if restart else "started"
         print(f"inest-launch: {verb} {child.name} (pid {child.process.pid}), log {child.log}", flush=True)
 
     @property
@@ -156,7 +161,7 @@ class Supervisor:
                     child.command = self.respawn_command(child.name, child.command)
                     with open(child.log, "a") as log:
                         log.write(f"\n--- inest-launch: restart {child.restarts} ---\n")
-                    self.start(child, "a")
+                    self.start(child, restart=True)
                 continue
             code = child.process.poll() if child.process is not None else None
             if code is not None:

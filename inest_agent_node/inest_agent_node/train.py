@@ -97,6 +97,8 @@ class Trainer:
         self.diagnostics: list[dict[str, float]] = []  # reward diagnostics per evaluation interval
         self.trained_seconds = 0.0  # up to the last checkpoint, over earlier sessions too
         self.session_start = time.monotonic()
+        if resume and not (self.run_dir / CONFIG_FILE).is_file():
+            raise RunFileError(f"nothing to resume in {self.run_dir}: it holds no earlier run ({CONFIG_FILE})")
         torch.set_num_threads(config.threads)
         self.env = env if env is not None else build_env(config)
         overlap_updates = config.overlap_updates
@@ -147,8 +149,6 @@ class Trainer:
         return evaluate_vec_env(self.eval_env, deterministic(self.model), episodes, self.config.seed)
 
     def check_run_dir(self, resume: bool) -> None:
-        if resume and not (self.run_dir / CONFIG_FILE).is_file():
-            raise RunFileError(f"nothing to resume in {self.run_dir}: it holds no earlier run ({CONFIG_FILE})")
         settings = self.config.to_dict()
         speed_only = {"total_steps", "reward_batch_steps", "overlap_updates"}  # may change on resume
         prepare_run_dir(self.run_dir, settings, resume, set(settings) - speed_only)

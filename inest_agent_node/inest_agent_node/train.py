@@ -25,9 +25,10 @@ import yaml
 from inest_common.files import RunFileError, read_json, read_run_file, write_atomic
 from inest_reward_node.learning.coverage import measure_coverage, plot_coverage
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings, prepare_run_dir
-from inest_reward_node.runtime.config import SHAPINGS, STAGE_EVIDENCE, STAGE_SOURCES, TRACKERS
+from inest_reward_node.runtime.config import SHAPINGS, STAGE_EVIDENCE, STAGE_SOURCES
 from inest_reward_node.runtime.intrinsic import INTRINSIC_MODES
 from inest_reward_node.runtime.model import TCC_SCHEMES, ModelError
+from inest_reward_node.runtime.trackers import TRACKERS
 from inest_sim_node.config import ORACLE_REWARDS
 from inest_sim_node.observation import STATE_OBSERVATIONS
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm

@@ -45,8 +45,7 @@ class EnvironmentReward:
             raise ValueError("the environment's reward needs each step's env_rewards and known_stages")
         rewards = np.asarray(steps.env_rewards, dtype=np.float64)
         stages = np.asarray(steps.known_stages, dtype=int)
-        envs = np.arange(self.num_envs) if steps.envs is None else np.asarray(steps.envs, dtype=int)
-        ends = np.zeros(len(envs), bool) if steps.episode_ends is None else np.asarray(steps.episode_ends, bool)
+        envs, _, ends = steps.rows(len(rewards), self.num_envs)
         switched = np.zeros(len(envs), bool)
         for row, env in enumerate(envs):  # in order: a later row of an environment follows its earlier ones
             switched[row] = stages[row] > self.stages[env]

@@ -56,6 +56,19 @@ class Steps:
     known_stages: np.ndarray | None = None  # the true stage, where someone knows it (needs_known_stages)
     env_rewards: np.ndarray | None = None  # the environment's own reward (the oracle's)
 
+    def rows(self, count: int, num_envs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(envs, rounds, episode_ends) of `count` scored rows of `num_envs` environments, checked."""
+        if self.envs is None and count != num_envs:
+            raise ValueError(f"expected one frame per environment ({num_envs}), got {count}")
+        envs = np.arange(num_envs) if self.envs is None else np.asarray(self.envs, dtype=int)
+        if len(envs) != count or np.any((envs < 0) | (envs >= num_envs)):
+            raise ValueError(f"environment indices {envs.tolist()} do not fit {count} frames")
+        rounds = np.zeros(count, int) if self.rounds is None else np.asarray(self.rounds)
+        if len(rounds) != count or np.any(np.diff(rounds) < 0):
+            raise ValueError("rounds must give every frame its round, in ascending order")
+        ends = np.zeros(count, bool) if self.episode_ends is None else np.asarray(self.episode_ends, dtype=bool)
+        return envs, rounds, ends
+
 
 @runtime_checkable
 class RewardFunction(Protocol):
@@ -225,17 +238,7 @@ class RewardScorer:
         head needs. `states`: the environments' state vectors, for the state novelty bonus.
         `known_stages`: each frame's true stage (the privileged diagnostic, `needs_known_stages`)."""
         count = len(embeddings)
-        if envs is None:
-            if count != self.num_envs:
-                raise ValueError(f"expected one frame per environment ({self.num_envs}), got {count}")
-            envs = np.arange(self.num_envs)
-        envs = np.asarray(envs, dtype=int)
-        if len(envs) != count or np.any((envs < 0) | (envs >= self.num_envs)):
-            raise ValueError(f"environment indices {envs.tolist()} do not fit {count} frames")
-        rounds = np.zeros(count, int) if rounds is None else np.asarray(rounds)
-        if len(rounds) != count or np.any(np.diff(rounds) < 0):
-            raise ValueError("rounds must give every frame its round, in ascending order")
-        ends = np.zeros(count, bool) if episode_ends is None else np.asarray(episode_ends, dtype=bool)
+        envs, rounds, ends = Steps(envs, rounds, episode_ends).rows(count, self.num_envs)
         per_subtask = self.reward.subtask_rewards(self.model, embeddings, self.goals)
         segments = self.segments(embeddings)
         at_least = self.classifier.at_least(embeddings) if self.classifier is not None else None

@@ -3,7 +3,10 @@
 Publishes each frame of a .npy file (N, H, W, 3 RGB) on `camera/image_raw` and waits for the
 reward carrying its stamp before the next, so every frame is scored. Optionally first sends
 malformed images, and at the end calls `reset_reward` and sends the first frame once more.
-Writes what it received as JSON. Used by tests/test_graph.py.
+`--scene FILE` publishes a second camera's frames, stamped alike, on `camera/allo/image_raw`
+(the scene camera a stage head reads), `--withhold I` all but frame I's, which is then expected
+to get no reward. Writes what it received as JSON. Used by tests/test_graph.py and
+tests/test_scene_stage.py.
 """
 
 from __future__ import annotations
@@ -56,19 +59,25 @@ def main() -> None:
     parser.add_argument("out")
     parser.add_argument("--malformed", action="store_true")
     parser.add_argument("--reset", action="store_true")
+    parser.add_argument("--scene", help=".npy of the scene camera's frames, one per frame")
+    parser.add_argument("--withhold", type=int, help="the index of a scene frame not to send")
     args = parser.parse_args()
     frames = np.load(args.frames)
+    scene = None if args.scene is None else np.load(args.scene)
     rclpy.init()
     node = rclpy.create_node("foreign_camera")
     publisher = node.create_publisher(Image, "camera/image_raw", 10)
+    scene_publisher = node.create_publisher(Image, "camera/allo/image_raw", 10)
     rewards: dict[int, Reward] = {}
     rejected, rejected_total, reasons = [0], [0], []
+    unpaired_total = [0]
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for status in msg.status:
             values = {item.key: item.value for item in status.values}
             rejected[0] += int(values.get("rejected", 0))
             rejected_total[0] = max(rejected_total[0], int(values.get("total_rejected", 0)))
+            unpaired_total[0] = max(unpaired_total[0], int(values.get("total_dropped_unpaired", 0)))
             if values.get("last_rejection"):
                 reasons.append(values["last_rejection"])
 
@@ -78,13 +87,19 @@ def main() -> None:
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
     reset = node.create_client(Trigger, "reset_reward")
     spin_until(node, lambda: publisher.get_subscription_count() > 0, 60, "the reward node's subscription")
+    if scene is not None:
+        spin_until(node, lambda: scene_publisher.get_subscription_count() > 0, 60, "the scene subscription")
     if args.malformed:
         for msg in malformed(frames[0]):
             publisher.publish(msg)
     received = []
 
-    def send(frame: np.ndarray, stamp: int) -> None:
+    def send(frame: np.ndarray, stamp: int, scene_frame: np.ndarray | None = None) -> None:
         publisher.publish(image(frame, stamp))
+        if scene_frame is not None:
+            scene_publisher.publish(image(scene_frame, stamp))
+        elif scene is not None:
+            return  # withheld: no reward is expected, and the next frame must not wait for one
         spin_until(node, lambda: stamp in rewards, 30, f"the reward for stamp {stamp}")
         msg = rewards[stamp]
         received.append(
@@ -101,15 +116,17 @@ def main() -> None:
         )
 
     for index, frame in enumerate(frames):
-        send(frame, (index + 1) * PERIOD_NS)
+        send(frame, (index + 1) * PERIOD_NS, None if scene is None or index == args.withhold else scene[index])
     after_reset = None
     if args.reset:
         spin_until(node, reset.service_is_ready, 30, "the reset_reward service")
         future = reset.call_async(Trigger.Request())
         spin_until(node, future.done, 30, "the reset_reward answer")
-        send(frames[0], (len(frames) + 1) * PERIOD_NS)
+        send(frames[0], (len(frames) + 1) * PERIOD_NS, None if scene is None else scene[0])
         after_reset = received.pop()
     spin_until(node, lambda: rejected[0] >= 3 or not args.malformed, 10, "diagnostics counting the rejections")
+    if args.withhold is not None:
+        spin_until(node, lambda: unpaired_total[0] >= 1, 10, "diagnostics counting the unpaired frame")
     with open(args.out, "w") as handle:
         json.dump(
             {
@@ -117,6 +134,8 @@ def main() -> None:
                 "after_reset": after_reset,
                 "rejected": rejected[0],
                 "rejected_total": rejected_total[0],
+                "unpaired_total": unpaired_total[0],
+                "stamps": sorted(rewards),
                 "reasons": reasons,
             },
             handle,

@@ -5,11 +5,15 @@ in the reward node, whose streams pair the two cameras' frames by stamp."""
 from __future__ import annotations
 
 import dataclasses
+import json
+import subprocess
+import sys
 import time
 
 import numpy as np
 import pytest
 import rclpy
+from foreign_camera import PERIOD_NS
 from inest_agent_node.envs import LEARNED_STAGE, STAGE_FRAME_KEY, build_env
 from inest_interfaces.msg import Reward
 from inest_reward_node.learning import pretrain
@@ -22,7 +26,7 @@ from inest_reward_node.runtime.model import load_model
 from inest_reward_node.runtime.rewards import RewardScorer, Steps
 from inest_reward_node.runtime.serving import StreamScorer
 from inest_reward_node.runtime.stage_head import StageHeadConfig
-from test_graph import reward_node_args, sim_node_args
+from test_graph import FOREIGN_CAMERA, reward_node_args, sim_node_args
 
 from inest_agent_node.config import TrainConfig
 
@@ -119,25 +123,34 @@ def test_training_and_the_quality_report_see_both_cameras(tiny_tcc_run, scene_mo
     assert set(report["schemes"]["3"]["false_completion_any"]) == {"random", "wrong_order"}
 
 
-def test_a_stream_waits_for_the_scene_frame_of_the_same_stamp(tiny_tcc_run, scene_model):
+def test_a_stream_pairs_scene_frames_by_stamp_and_drops_a_frame_whose_partner_is_lost(tiny_tcc_run, scene_model):
     config, _ = tiny_tcc_run
     model = load_model(scene_model[0])
-    ego, allo = demo_frames(config.dataset, "ego")[0][:4], demo_frames(config.dataset, "allo")[0][:4]
+    ego, allo = demo_frames(config.dataset, "ego")[0][:5], demo_frames(config.dataset, "allo")[0][:5]
     streams = StreamScorer(RewardScorer(model, 3, config=PIXELS))
     assert streams.stage_camera == "allo"
     streams.submit(0, 1, ego[0])
     streams.submit(0, 2, ego[1])
-    streams.submit_stage(0, 2, allo[1])
-    assert streams.flush() == []  # stamp 1 has no scene frame yet, and stamp 2 comes after it
+    assert streams.flush() == []  # stamp 1 waits for its scene frame, and stamp 2 after it
     streams.submit_stage(0, 1, allo[0])
+    streams.submit_stage(0, 2, allo[1])
+    assert [frame.stamp for frame in streams.flush()] == [1, 2]
+    streams.submit(0, 3, ego[2])  # its scene frame never comes
+    streams.submit(0, 4, ego[3])
+    streams.submit_stage(0, 4, allo[3])  # a newer scene stamp: stamp 3's partner is lost
     scored = streams.flush()
-    assert [frame.stamp for frame in scored] == [1, 2]
-    expected = RewardScorer(model, 3, config=PIXELS).score(ego[:2], allo[:2], Steps(np.zeros(2, int), np.arange(2)))
-    np.testing.assert_allclose([frame.total for frame in scored], expected.total, rtol=1e-5)
-    streams.submit(0, 3, ego[2])  # its scene frame never comes: dropped at the episode's reset, counted
-    assert streams.flush() == []
-    streams.reset(0)
-    assert streams.num_pending == 0 and streams.take_stats()["dropped_unpaired"] == 1
+    assert [frame.stamp for frame in scored] == [4]  # 3 dropped, 4 not held back
+    expected = RewardScorer(model, 3, config=PIXELS).score(
+        ego[[0, 1, 3]], allo[[0, 1, 3]], Steps(np.zeros(3, int), np.arange(3))
+    )
+    np.testing.assert_allclose(scored[0].total, expected.total[-1], rtol=1e-5)
+    streams.submit_stage(0, 5, allo[4])  # its ego frame is late, then the scene stream moves on
+    streams.submit_stage(0, 6, allo[4])
+    streams.submit(0, 6, ego[4])
+    assert [frame.stamp for frame in streams.flush()] == [6]  # the orphan scene frame 5 goes too
+    stats = streams.take_stats()
+    assert stats["dropped_unpaired"] == 2 and stats["dropped"] == 2
+    assert any("no allo camera frame of stamp 3" in line for _, line in streams.log.take())
 
 
 def test_the_reward_node_pairs_the_simulators_two_cameras(graph, scene_model):
@@ -159,3 +172,26 @@ def test_the_reward_node_pairs_the_simulators_two_cameras(graph, scene_model):
     stamps = [(r.header.stamp.sec, r.header.stamp.nanosec) for r in rewards]
     assert stamps == sorted(set(stamps)) and all(np.isfinite(r.total) for r in rewards)
     assert "stage from ['sim0/camera/allo/image_raw'] (allo camera)" in graph.log("reward")
+
+
+def test_a_lost_scene_frame_is_dropped_as_unpaired_and_holds_nothing_back(graph, tiny_tcc_run, scene_model, tmp_path):
+    config, _ = tiny_tcc_run
+    ego, allo = demo_frames(config.dataset, "ego")[0][:6], demo_frames(config.dataset, "allo")[0][:6]
+    np.save(tmp_path / "ego.npy", ego)
+    np.save(tmp_path / "allo.npy", allo)
+    graph.start(
+        "reward",
+        *reward_node_args(scene_model[0], "-p", "image_topic:=camera/image_raw", "-p", "reward.stage_evidence:=pixels"),
+    )
+    camera = subprocess.run(
+        [sys.executable, FOREIGN_CAMERA, tmp_path / "ego.npy", tmp_path / "out.json",
+         "--scene", tmp_path / "allo.npy", "--withhold", "2"],
+        env=graph.env, capture_output=True, text=True, timeout=240,
+    )  # fmt: skip
+    assert camera.returncode == 0, camera.stdout + camera.stderr + graph.log("reward")
+    received = json.loads((tmp_path / "out.json").read_text())
+    # every frame but the one whose scene frame was withheld got its reward, each before the next was sent
+    assert [r["stamp"] for r in received["rewards"]] == [(i + 1) * PERIOD_NS for i in (0, 1, 3, 4, 5)]
+    assert received["stamps"] == [r["stamp"] for r in received["rewards"]]
+    assert received["unpaired_total"] == 1
+    assert f"no allo camera frame of stamp {3 * PERIOD_NS}" in graph.log("reward")

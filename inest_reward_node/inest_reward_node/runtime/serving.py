@@ -14,9 +14,12 @@ Stamps. A stream's frames are keyed by their stamp and expected in stamp order:
 Every frame that gets no reward of its own is counted by reason in `ServingStats`.
 
 A stage head that reads a second camera (a scene camera beside the egocentric one,
-`RewardScorer.stage_camera`) gets that camera's frame of the same stamp (`submit_stage`): a
-stream's frames wait, in order, until their partner arrives (a zero-stamped frame takes the
-stream's newest one), so a frame is never scored with another moment's stage evidence.
+`RewardScorer.stage_camera`) gets that camera's frame of the same stamp (`submit_stage`), so a
+frame is never scored with another moment's stage evidence: a frame waits for its partner (a
+zero-stamped frame takes the stream's newest one) until the second camera sends a newer stamp.
+Each camera's frames come in stamp order, so its partner is then lost: the frame is dropped,
+counted as `unpaired` and logged, and never holds back the stream's later frames. Second-camera
+frames older than the frame just paired have no partner either and are dropped the same way.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from .images import fit_square
 from .rewards import RewardFunction, Steps
 
 BACKWARD_POLICIES = ("reset", "reject")
+READY, WAITING, LOST = "ready", "waiting", "lost"  # a frame's pairing with its stage camera's frame
 
 
 @dataclass
@@ -193,16 +197,24 @@ class StreamScorer:
             del kept[next(iter(kept))]
             self.stats.dropped["unpaired"] += 1
 
-    def partner(self, stream: int, item: Pending) -> bool:
-        """Give `item` its stage frame if it needs one and it has come; False while it must wait."""
+    def partner(self, stream: int, item: Pending) -> str:
+        """Give `item` its stage frame if it needs one and it has come: READY; WAITING while it may
+        still come; LOST once the stage camera has sent a newer stamp."""
         if self.stage_camera is None or item.stage_frame is not None:
-            return True
+            return READY
         kept = self.stage_frames[stream]
         if item.stamp == 0 and kept:  # zero stamps cannot pair: the newest scene frame
             item.stage_frame = kept.pop(next(reversed(kept)))
         elif item.stamp in kept:
             item.stage_frame = kept.pop(item.stamp)
-        return item.stage_frame is not None
+        elif any(stamp > item.stamp for stamp in kept):
+            return LOST
+        else:
+            return WAITING
+        for orphan in [stamp for stamp in kept if stamp < item.stamp]:  # their partners are past
+            del kept[orphan]
+            self.stats.dropped["unpaired"] += 1
+        return READY
 
     @property
     def num_pending(self) -> int:
@@ -212,7 +224,7 @@ class StreamScorer:
     def round_complete(self) -> bool:
         """Every stream has a frame ready to score (with its stage frame, when the stage head reads
         a second camera): a flush now scores a whole lockstep round at once."""
-        return all(queue and self.partner(stream, queue[0]) for stream, queue in enumerate(self.pending))
+        return all(queue and self.partner(stream, queue[0]) != WAITING for stream, queue in enumerate(self.pending))
 
     def reject(self, reason: str, detail: str) -> None:
         """Count and log a frame that will get no reward; `reason` is its short name."""
@@ -285,9 +297,13 @@ class StreamScorer:
                     results.append(replace(last, received=item.received, frame_id=item.frame_id, repeated=True))
                     self.stats.repeated += 1
                     continue
-                if not self.partner(stream, item):
+                pairing = self.partner(stream, item)
+                if pairing == WAITING:
                     break  # it and the stream's later frames wait for its stage frame
                 queue.popleft()
+                if pairing == LOST:
+                    self.drop_unpaired(stream, item.stamp)
+                    continue
                 waiting.append((position, stream, item))
                 position += 1
         if not waiting:
@@ -318,6 +334,15 @@ class StreamScorer:
         self.stats.scored += len(waiting)
         self.stats.batches += 1
         return results
+
+    def drop_unpaired(self, stream: int, stamp: int) -> None:
+        self.stats.dropped["unpaired"] += 1
+        detail = f"stream {stream}: no {self.stage_camera} camera frame of stamp {stamp} (a newer one came)"
+        self.log.add(
+            f"unpaired:{stream}",
+            f"{detail}: the frame is dropped unscored",
+            f"dropped {{count}} unpaired frames in the last {{seconds}} s; latest: {detail}",
+        )
 
     def reset(self, stream: int) -> None:
         """A new episode on one stream: its tracker restarts and any stamp may follow (a restarted

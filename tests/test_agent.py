@@ -107,8 +107,12 @@ def tiny_config(total_steps: int, observation: str = "stage") -> TrainConfig:
 def test_interrupted_training_resumes_with_its_step_counter_and_buffer(tmp_path):
     first = Trainer(tiny_config(400), tmp_path / "run", progress_bar=False)
     first.train()  # stands in for a run killed after its checkpoint at 400 steps
-    first_seconds = json.loads((tmp_path / "run" / "checkpoint" / "timing.json").read_text())["training_s"]
-    assert first_seconds > 0
+    checkpoint = tmp_path / "run" / "checkpoint"
+    info = json.loads((checkpoint / "checkpoint.json").read_text())
+    first_seconds = info["training_s"]
+    assert first_seconds > 0 and info["steps"] == 400
+    assert info["bytes"] == sum(path.stat().st_size for path in checkpoint.iterdir() if path.name != "checkpoint.json")
+    assert not list(checkpoint.glob("*.pkl"))  # the replay buffer is plain arrays: loading it runs no code
     with pytest.raises(FileExistsError, match="--resume"):
         Trainer(tiny_config(600), tmp_path / "run", progress_bar=False)
     resumed = Trainer(tiny_config(600), tmp_path / "run", resume=True, progress_bar=False)

@@ -43,7 +43,7 @@ def cell_states(out: Path, cells: list[str]) -> dict[str, str]:
     def state(run: Path) -> str:
         if (run / "results.json").exists():
             return "finished"
-        return "half" if (run / "checkpoint" / "history.json").exists() else "other"
+        return "half" if (run / "checkpoint" / "checkpoint.json").exists() else "other"
 
     return {cell: state(out / cell) for cell in cells}
 
@@ -77,6 +77,7 @@ def test_a_killed_grid_resumes_and_finishes_every_cell_exactly_once(tmp_path, ca
         at_kill = kill_when_half_finished(runner, out, cells)
     finished = [cell for cell, state in at_kill.items() if state == "finished"]
     halves = [cell for cell, state in at_kill.items() if state == "half"]
+    started = {cell for cell, state in at_kill.items() if state == "other" and (out / cell / "config.json").exists()}
     before = {cell: (out / cell / "results.json").stat().st_mtime_ns for cell in finished}
     history = {cell: json.loads((out / cell / "checkpoint" / "history.json").read_text()) for cell in halves}
     assert json.loads((out / "grid.json").read_text())["grid"]["seeds"] == [0, 1]
@@ -96,6 +97,8 @@ def test_a_killed_grid_resumes_and_finishes_every_cell_exactly_once(tmp_path, ca
             assert len(starts) == 2 and "--resume" not in starts[0] and starts[1].endswith("--resume")
             assert results["learning_curve"][: len(history[cell])] == history[cell]
             assert [point[0] for point in results["learning_curve"]] == [200, 400]
+        elif cell in started:  # killed before its first checkpoint: trained again from step 0, and its log says so
+            assert len(starts) == 2 and starts[1].endswith("--start-over")
         else:
             assert len(starts) == 1
     report = (out / "report.md").read_text()
@@ -214,7 +217,7 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     assert summary["references"] == {"oracle": {"label": "thesis", "score": 0.7, "success": 0.2245}}
     # the export: report and runs' small files, a training run's curve so far, no checkpoints
     export = tmp_path.with_name(f"{tmp_path.name}-export")
-    (tmp_path / "oracle" / "seed0" / "checkpoint" / "replay_buffer.pkl").write_bytes(b"large")
+    (tmp_path / "oracle" / "seed0" / "checkpoint" / "replay_buffer.npz").write_bytes(b"large")
     assert main(["report", str(grid), "--export", str(export)]) == 0
     assert (export / "report.md").read_text() == (tmp_path / "report.md").read_text()
     assert (export / "summary.json").exists() and (export / "learning_curves.png").exists()

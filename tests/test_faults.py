@@ -21,7 +21,7 @@ import pytest
 import rclpy
 import yaml
 from inest_agent_node.train import Trainer
-from inest_bringup.launcher import graph_environment
+from inest_bringup.launcher import graph_environment, resuming_agent
 from inest_bringup.monitor import GraphMonitor
 from inest_bringup.supervisor import TRAINING_NICENESS, Outcome, RespawnPolicy, Supervisor, training_cpus
 from inest_interfaces.msg import Reward
@@ -115,7 +115,7 @@ def test_corrupt_run_files_and_an_empty_resume_are_one_line_and_exit_2(saved_run
         return data[: len(data) // 2]
 
     runs = {
-        "replay_buffer.pkl": damaged_copy(saved_run, tmp_path, "replay_buffer.pkl", truncate),
+        "replay_buffer.npz": damaged_copy(saved_run, tmp_path, "replay_buffer.npz", truncate),
         "history.json": damaged_copy(saved_run, tmp_path, "history.json", lambda data: b"[[200, 0.1"),
         "model.zip": damaged_copy(saved_run, tmp_path, "model.zip", truncate),
     }
@@ -134,6 +134,56 @@ def test_corrupt_run_files_and_an_empty_resume_are_one_line_and_exit_2(saved_run
         assert (runs[name] / "checkpoint" / name).read_bytes() == before[name]  # nothing saved is lost
     assert_refused(empty, f"nothing to resume in {tmp_path / 'never-ran'}")
     assert_refused(agent, "inest-agent-node: nothing to resume in", "no-agent-run")
+
+
+def test_a_killed_run_resumes_from_a_timed_checkpoint_and_one_without_a_checkpoint_is_refused(saved_run, tmp_path):
+    config = yaml.safe_load((saved_run / "train.yaml").read_text())
+    slow = {**config, "total_steps": 100_000, "checkpoint_every": 100_000, "checkpoint_minutes": 0.01}
+    (tmp_path / "slow.yaml").write_text(yaml.safe_dump(slow))
+    run = tmp_path / "run"
+    train = ["inest-train", "--out", str(run), "--config", str(tmp_path / "slow.yaml")]
+    process = start(tmp_path, *train)
+    info = run / "checkpoint" / "checkpoint.json"
+    deadline = time.monotonic() + 120
+    while not info.exists() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    process.kill()  # no chance to save anything more
+    process.communicate()
+    steps = json.loads(info.read_text())["steps"]
+    assert 0 < steps < 100_000  # written by the clock, long before the first checkpoint_every
+    assert_refused(start(tmp_path, *train, "--start-over"), f"{run} has a checkpoint at step {steps}: resume it")
+    resumed = start(tmp_path, *train, "--resume", "--total-steps", str(steps + 8))
+    assert resumed.communicate(timeout=120)[0] and resumed.returncode == 0
+    assert json.loads((run / "results.json").read_text())["steps"] == steps + 8  # it went on, not from 0
+    # a run killed before its first checkpoint: --resume says so and trains nothing; --start-over trains it again
+    unfinished = tmp_path / "unfinished"
+    unfinished.mkdir()
+    (unfinished / "config.json").write_text(json.dumps(config))
+    short = ["inest-train", "--out", str(unfinished), "--config", str(saved_run / "train.yaml")]
+    assert_refused(start(tmp_path, *short, "--resume"), "the run stopped before its first checkpoint", "--start-over")
+    assert not (unfinished / "checkpoint").exists()
+    started_over = start(tmp_path, *short, "--start-over")
+    assert started_over.communicate(timeout=120)[0] and started_over.returncode == 0
+    assert json.loads((unfinished / "results.json").read_text())["steps"] == config["total_steps"]
+    # a checkpoint of the older format, a pickled replay buffer, is never loaded
+    (unfinished / "checkpoint" / "checkpoint.json").unlink()
+    (unfinished / "checkpoint" / "replay_buffer.pkl").write_bytes(b"pickle")
+    assert_refused(start(tmp_path, *short, "--resume"), "older format (a pickled replay buffer)")
+
+
+def test_a_respawned_agent_resumes_its_checkpoint_or_starts_over_and_says_so(tmp_path, capsys):
+    command = resuming_agent(tmp_path)
+    argv = ["inest-agent-node", "--ros-args", "-p", "resume:=true", "-p", "total_steps:=10"]
+    assert command("sim0", ["inest-sim-node"]) == ["inest-sim-node"]
+    assert command("agent", argv) == argv  # no run yet: started as it was
+    (tmp_path / "agent").mkdir()
+    (tmp_path / "agent" / "config.json").write_text("{}")
+    restarted = command("agent", argv)
+    assert restarted == ["inest-agent-node", "--ros-args", "-p", "total_steps:=10", "-p", "start_over:=true"]
+    assert "the agent stopped before its first checkpoint; its run in" in capsys.readouterr().out
+    (tmp_path / "agent" / "checkpoint").mkdir()
+    (tmp_path / "agent" / "checkpoint" / "checkpoint.json").write_text("{}")
+    assert command("agent", restarted) == [*argv[:2], "-p", "total_steps:=10", "-p", "resume:=true"]
 
 
 def test_the_supervisor_restarts_with_back_off_and_stops_a_node_that_keeps_dying(tmp_path):

@@ -25,6 +25,7 @@ from inest_agent_node.learners import (
     learner_class,
     learner_kwargs,
 )
+from inest_agent_node.replay_store import load_replay_buffer, save_replay_buffer
 from stable_baselines3 import SAC
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
@@ -123,10 +124,10 @@ def test_trains_saves_loads_and_acts_the_same_with_overlapped_updates(name, tmp_
     assert actions.shape == (len(observations), 3) and np.abs(actions).max() <= 1
     np.testing.assert_array_equal(model.predict(observations, deterministic=True)[0], actions)
     model.save(tmp_path / "model.zip")
-    model.save_replay_buffer(tmp_path / "replay_buffer.pkl")
+    save_replay_buffer(model.replay_buffer, tmp_path / "replay_buffer.npz")
 
     loaded = build_learner_class(name, overlap_updates=True).load(tmp_path / "model.zip", env=tiny_env())
-    loaded.load_replay_buffer(tmp_path / "replay_buffer.pkl")
+    load_replay_buffer(loaded.replay_buffer, tmp_path / "replay_buffer.npz")
     assert type(loaded) is type(model) and loaded.num_timesteps == 100
     np.testing.assert_allclose(loaded.predict(observations, deterministic=True)[0], actions, atol=1e-6)
     assert loaded.replay_buffer.size() == model.replay_buffer.size() == 100

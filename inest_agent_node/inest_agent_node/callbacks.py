@@ -9,7 +9,8 @@ evaluation of the same step has just added):
   `eval_every` steps their summary into `trainer.diagnostics` and TensorBoard `diagnostics/*`;
 - EvaluationCallback: every `eval_every` steps the deterministic policy on `eval_episodes`
   evaluation episodes, into `trainer.history` and TensorBoard `eval/score`, `eval/success_rate`;
-- CheckpointCallback: every `checkpoint_every` steps `trainer.save_checkpoint()`.
+- CheckpointCallback: every `checkpoint_every` steps or `checkpoint_minutes`, whichever comes
+  first, `trainer.save_checkpoint()`, with a line saying its step and size.
 
 "Every N steps" is on the first vector step at or past each multiple of N (`due`), since
 `num_timesteps` grows by `num_envs` per vector step.
@@ -18,6 +19,7 @@ evaluation of the same step has just added):
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import Protocol
 
 from inest_common.progress import track
@@ -33,13 +35,14 @@ class Trainer(Protocol):
     """What the callbacks use of a training run (train.Trainer)."""
 
     config: TrainConfig
+    run_dir: Path
     progress_bar: bool
     history: list[list[float]]
     diagnostics: list[dict[str, float]]
 
     def evaluate(self, episodes: int) -> EvalResult: ...
 
-    def save_checkpoint(self) -> None: ...
+    def save_checkpoint(self) -> int: ...
 
 
 def due(steps: int, every: int, num_envs: int) -> bool:
@@ -129,11 +132,15 @@ class CheckpointCallback(BaseCallback):
     def __init__(self, trainer: Trainer) -> None:
         super().__init__()
         self.trainer = trainer
+        self.last = time.monotonic()
 
     def _on_step(self) -> bool:
         config = self.trainer.config
-        if due(self.num_timesteps, config.checkpoint_every, config.num_envs):
-            self.trainer.save_checkpoint()
+        late = time.monotonic() - self.last >= config.checkpoint_minutes * 60
+        if late or due(self.num_timesteps, config.checkpoint_every, config.num_envs):
+            size = self.trainer.save_checkpoint()
+            self.last = time.monotonic()
+            tqdm.write(f"checkpoint at step {self.num_timesteps}: {size / 2**20:.1f} MB in {self.trainer.run_dir}")
         return True
 
 

@@ -123,6 +123,8 @@ class TrainConfig:
     eval_episodes: int = 50
     final_eval_episodes: int = 150
     checkpoint_every: int = 20_000
+    # and at least this often, so that a killed run loses minutes, whatever its speed
+    checkpoint_minutes: float = 5.0
     seed: int = 0
     threads: int = 2
     # run each update while the environments take the next step (learners.OverlappedUpdatesMixin;
@@ -168,6 +170,8 @@ class TrainConfig:
         ):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if not self.checkpoint_minutes > 0:
+            raise ValueError(f"checkpoint_minutes must be positive, got {self.checkpoint_minutes}")
         if self.seed < 0:
             raise ValueError(f"seed must be >= 0, got {self.seed}")
 

@@ -3,7 +3,8 @@
 `inest-experiments run GRID.yaml [METHOD ...]` trains every method x seed of the grid
 (config.GridConfig; example: config/grid.yaml) in OUT/<method>/seed<N>/, the layout
 `inest-summarise` reads, with the cell's output in OUT/<method>/seed<N>.log. A cell holding
-results.json is finished and skipped; one holding config.json is continued with `--resume`; so
+results.json is finished and skipped; one with a checkpoint is continued with `--resume`, one
+stopped before its first checkpoint trained again (`--start-over`); so
 a grid killed at any point continues where it stopped when the same command runs again.
 OUT/grid.json records the grid and every cell's command and full training config; a cell that
 has a run folder but whose settings have since changed is refused. Each cell is an inest-train
@@ -54,7 +55,7 @@ from inest_reward_node.learning.runs import CONFIG_FILE
 from .config import GridConfig, ReferenceResult
 from .grid_quality import QUALITY_DIR, quality_table
 from .summary import CURVES_FILE, SUMMARY_FILE, plot_curves, read_run, summarise, write_summary
-from .train import CHECKPOINT_DIR, DIAGNOSTICS_FILE, HISTORY_FILE, RESULTS_FILE, parse_args
+from .train import CHECKPOINT_DIR, DIAGNOSTICS_FILE, HISTORY_FILE, RESULTS_FILE, continuation_flags, parse_args
 
 GRID_FILE = "grid.json"
 REPORT_FILE = "report.md"
@@ -169,10 +170,9 @@ def die_with_parent() -> None:
 
 
 def run_cell(cell: Cell) -> int:
-    """Train one cell as an inest-train subprocess (with --resume if it had started), its output
+    """Train one cell as an inest-train subprocess (continuing it if it had started), its output
     appended to its log; the exit status. The same function runs here and in a Ray worker."""
-    resume = ["--resume"] if (cell.run_dir / CONFIG_FILE).exists() else []
-    command = [sys.executable, "-m", "inest_agent_node.train", *cell.train_args, *resume]
+    command = [sys.executable, "-m", "inest_agent_node.train", *cell.train_args, *continuation_flags(cell.run_dir)]
     cell.run_dir.parent.mkdir(parents=True, exist_ok=True)
     with open(cell.log, "a") as log:
         log.write(f"# inest-experiments: {shlex.join(command)}\n")

@@ -5,7 +5,8 @@ Parameters: every training setting of config.py (`reward`, `total_steps`, `sac.b
 - `mode`: train | evaluate
 - `out`: run folder (config.json, checkpoint/, results.json, learning_curve.png, as inest-train)
 - `namespaces`: one simulator (and reward stream) per namespace, e.g. ["sim0", "sim1"]
-- `resume`: continue the run in `out` from its last checkpoint
+- `resume`: continue the run in `out` from its last checkpoint (refused if it has none)
+- `start_over`: train the run in `out` again from step 0, one that stopped before its first checkpoint
 - `step_timeout`: seconds of silence before a topic is reported (the node keeps waiting)
 - `overlap_updates` (a training setting, on by default here): run each SAC update while the
   simulators take the next step (the action then comes from a policy one update older)
@@ -40,6 +41,7 @@ class AgentNodeConfig:
     out: str = "runs/graph-train"
     namespaces: tuple[str, ...] = ("",)
     resume: bool = False
+    start_over: bool = False
     step_timeout: float = 5.0
     episodes: int = 150
     policy: str = ""  # evaluate: a saved SAC model.zip; empty: `out`/checkpoint/model.zip
@@ -91,7 +93,7 @@ class AgentNode(Node):
                 result = evaluate_vec_env(env, deterministic(model), settings.episodes, config.seed)
                 print(format_table({f"{Path(policy).name} over the graph": result}), flush=True)
                 return
-            trainer = Trainer(config, settings.out, settings.resume, env=env)
+            trainer = Trainer(config, settings.out, settings.resume, env=env, start_over=settings.start_over)
             try:
                 result = trainer.train()
             except (KeyboardInterrupt, Exception) as error:

@@ -1,8 +1,9 @@
 """Train SAC on the learned (or the environment's) reward, in one process (`inest-train`).
 
-Run folder: config.json (the full configuration), checkpoint/ (model.zip, replay_buffer.pkl,
-history.json, diagnostics.json, exploration.npz with the novelty memories, timing.json with the
-training seconds so far: the `--resume` point, written every `checkpoint_every` steps),
+Run folder: config.json (the full configuration), checkpoint/ (model.zip, replay_buffer.npz
+(replay_store.py), history.json, diagnostics.json, exploration.npz with the novelty memories,
+checkpoint.json with its step, size and the training seconds so far: the `--resume` point,
+written every `checkpoint_every` steps or `checkpoint_minutes`, whichever comes first),
 tensorboard/ (evaluation scores and the reward diagnostics), and at the end results.json (final
 150-episode evaluation, learning curve points, reward diagnostics per evaluation interval,
 coverage of the visited embeddings, wall-clock seconds of training and final evaluation, config),
@@ -46,15 +47,18 @@ from .learners import (
     configure_jax_threads,
     learner_kwargs,
 )
+from .replay_store import load_replay_buffer, save_replay_buffer
 
 CHECKPOINT_DIR = "checkpoint"
 RESULTS_FILE = "results.json"
 EXPLORATION_FILE = "exploration.npz"  # novelty memories and visited embeddings
 HISTORY_FILE = "history.json"  # the learning curve: [steps, mean score, std] per evaluation
 DIAGNOSTICS_FILE = "diagnostics.json"
-# training seconds up to the checkpoint, periodic evaluations included, summed over resumes (the
-# time between a run's last checkpoint and its kill is lost with the steps it trained)
-TIMING_FILE = "timing.json"
+REPLAY_FILE = "replay_buffer.npz"
+# the checkpoint's step, its size in bytes, and the training seconds up to it, periodic evaluations
+# included, summed over resumes (the time between a run's last checkpoint and its kill is lost with
+# the steps it trained)
+CHECKPOINT_INFO = "checkpoint.json"
 EVAL_ENVS = 10  # evaluation episodes run side by side (one encoder pass for all their frames)
 
 
@@ -90,6 +94,7 @@ class Trainer:
         resume: bool = False,
         progress_bar: bool = True,
         env: VecEnv | None = None,
+        start_over: bool = False,
     ):
         self.config = config
         self.run_dir = Path(run_dir)
@@ -98,8 +103,8 @@ class Trainer:
         self.diagnostics: list[dict[str, float]] = []  # reward diagnostics per evaluation interval
         self.trained_seconds = 0.0  # up to the last checkpoint, over earlier sessions too
         self.session_start = time.monotonic()
-        if resume and not (self.run_dir / CONFIG_FILE).is_file():
-            raise RunFileError(f"nothing to resume in {self.run_dir}: it holds no earlier run ({CONFIG_FILE})")
+        checkpoint = self.run_dir / CHECKPOINT_DIR
+        check_resume(self.run_dir, resume, start_over)
         torch.set_num_threads(config.threads)
         self.env = env if env is not None else build_env(config)
         overlap_updates = config.overlap_updates
@@ -107,8 +112,7 @@ class Trainer:
             self.env = ConcurrentUpdatesVecEnv(self.env)  # the updates run while the in-process envs step
         self.reward_env: RewardVecEnv | None = unwrap_vec_wrapper(self.env, RewardVecEnv)
         self.eval_env = build_env(config, min(EVAL_ENVS, config.final_eval_episodes), evaluation=True)
-        self.check_run_dir(resume)  # written only once the model and the environments have loaded
-        checkpoint = self.run_dir / CHECKPOINT_DIR
+        self.check_run_dir(resume or start_over, start_over)  # written only once the models and envs load
         if config.learner.startswith("sbx"):
             configure_jax_threads(config.threads)
         batching = not overlap_updates and self.reward_env is not None and self.reward_env.batch_steps > 1
@@ -118,19 +122,17 @@ class Trainer:
             batching,
             drops_broken_steps=env is not None,  # the graph's simulators
         )
-        if resume and (checkpoint / "model.zip").exists():
+        if resume:
             self.model = read_run_file(
                 checkpoint / "model.zip",
                 lambda path: algorithm.load(path, env=self.env, tensorboard_log=str(self.run_dir / "tensorboard")),
             )
-            read_run_file(checkpoint / "replay_buffer.pkl", self.model.load_replay_buffer)
+            read_run_file(checkpoint / REPLAY_FILE, lambda path: load_replay_buffer(self.model.replay_buffer, path))
             self.history = read_run_file(checkpoint / HISTORY_FILE, read_json)
-            if (checkpoint / DIAGNOSTICS_FILE).exists():
-                self.diagnostics = read_run_file(checkpoint / DIAGNOSTICS_FILE, read_json)
-            if (checkpoint / TIMING_FILE).exists():
-                self.trained_seconds = read_run_file(
-                    checkpoint / TIMING_FILE, lambda path: float(read_json(path)["training_s"])
-                )
+            self.diagnostics = read_run_file(checkpoint / DIAGNOSTICS_FILE, read_json)
+            self.trained_seconds = read_run_file(
+                checkpoint / CHECKPOINT_INFO, lambda path: float(read_json(path)["training_s"])
+            )
             if self.reward_env is not None and (checkpoint / EXPLORATION_FILE).exists():
                 self.reward_env.restore_exploration(read_run_file(checkpoint / EXPLORATION_FILE, read_npz))
         else:
@@ -149,26 +151,24 @@ class Trainer:
         """The deterministic policy on the evaluation layouts, through the training observation path."""
         return evaluate_vec_env(self.eval_env, deterministic(self.model), episodes, self.config.seed)
 
-    def check_run_dir(self, resume: bool) -> None:
+    def check_run_dir(self, overwrite: bool, start_over: bool) -> None:
         settings = self.config.to_dict()
-        speed_only = {"total_steps", "reward_batch_steps", "overlap_updates"}  # may change on resume
-        prepare_run_dir(self.run_dir, settings, resume, set(settings) - speed_only)
+        # may change on resume: they change how fast or how often, not what is trained
+        speed_only = {"total_steps", "reward_batch_steps", "overlap_updates", "checkpoint_every", "checkpoint_minutes"}
+        prepare_run_dir(self.run_dir, settings, overwrite, set() if start_over else set(settings) - speed_only)
 
-    def save_checkpoint(self) -> None:
-        """Model, replay buffer and history, each written whole before it replaces the last one."""
+    def save_checkpoint(self) -> int:
+        """Model, replay buffer, history and novelty memories, each written whole before it replaces
+        the last one, and checkpoint.json (written last: a checkpoint without it is incomplete).
+        Returns the checkpoint's size in bytes."""
         checkpoint = self.run_dir / CHECKPOINT_DIR
         checkpoint.mkdir(exist_ok=True)
         if isinstance(self.model, RewardBatchingMixin):
             self.model.settle_rewards()
-        write_atomic(checkpoint / "replay_buffer.pkl", lambda path: self.model.save_replay_buffer(path))
+        write_atomic(checkpoint / REPLAY_FILE, lambda path: save_replay_buffer(self.model.replay_buffer, path))
         write_atomic(checkpoint / "model.zip", lambda path: self.model.save(path))
         write_atomic(checkpoint / HISTORY_FILE, lambda path: path.write_text(json.dumps(self.history)))
         write_atomic(checkpoint / DIAGNOSTICS_FILE, lambda path: path.write_text(json.dumps(self.diagnostics)))
-        now = time.monotonic()
-        self.trained_seconds += now - self.session_start
-        self.session_start = now
-        timing = json.dumps({"training_s": self.trained_seconds})
-        write_atomic(checkpoint / TIMING_FILE, lambda path: path.write_text(timing))
         if self.reward_env is not None:
             state = self.reward_env.exploration_state()
 
@@ -177,6 +177,13 @@ class Trainer:
                     np.savez(handle, **state)
 
             write_atomic(checkpoint / EXPLORATION_FILE, save_exploration)
+        now = time.monotonic()
+        self.trained_seconds += now - self.session_start
+        self.session_start = now
+        size = sum(path.stat().st_size for path in checkpoint.iterdir() if path.name != CHECKPOINT_INFO)
+        info = {"steps": int(self.model.num_timesteps), "bytes": size, "training_s": self.trained_seconds}
+        write_atomic(checkpoint / CHECKPOINT_INFO, lambda path: path.write_text(json.dumps(info) + "\n"))
+        return size
 
     def train(self) -> EvalResult:
         remaining = self.config.total_steps - self.model.num_timesteps
@@ -222,6 +229,44 @@ class Trainer:
         return result
 
 
+def has_checkpoint(run_dir: Path) -> bool:
+    """Whether the run in `run_dir` has a whole checkpoint to resume (its info file is written last)."""
+    return (run_dir / CHECKPOINT_DIR / CHECKPOINT_INFO).is_file()
+
+
+def continuation_flags(run_dir: Path) -> list[str]:
+    """inest-train's flags to carry on the run in `run_dir`, whatever its state: --resume from its
+    checkpoint, --start-over for one stopped before its first, nothing for a new one."""
+    if has_checkpoint(run_dir):
+        return ["--resume"]
+    return ["--start-over"] if (run_dir / CONFIG_FILE).exists() else []
+
+
+def check_resume(run_dir: Path, resume: bool, start_over: bool) -> None:
+    """Refuse, before anything loads or is written, a resume with nothing to continue (never
+    silently from step 0), and a start-over that would throw a checkpoint away."""
+    if resume and start_over:
+        raise ValueError("resume and start over exclude each other")
+    if resume and not (run_dir / CONFIG_FILE).is_file():
+        raise RunFileError(f"nothing to resume in {run_dir}: it holds no earlier run ({CONFIG_FILE})")
+    if resume and not has_checkpoint(run_dir) and (run_dir / CHECKPOINT_DIR / "replay_buffer.pkl").exists():
+        raise RunFileError(
+            f"cannot resume {run_dir}: its checkpoint is in an older format (a pickled replay buffer), "
+            "which is no longer loaded: it could run code"
+        )
+    if resume and not has_checkpoint(run_dir):
+        raise RunFileError(
+            f"nothing to resume in {run_dir}: the run stopped before its first checkpoint; "
+            "start it over from step 0 (inest-train --start-over, the agent node's start_over:=true) "
+            "or pick a new folder"
+        )
+    if start_over and has_checkpoint(run_dir):
+        steps = read_run_file(run_dir / CHECKPOINT_DIR / CHECKPOINT_INFO, read_json).get("steps")
+        raise FileExistsError(
+            f"{run_dir} has a checkpoint at step {steps}: resume it, or pick a new folder to start over"
+        )
+
+
 def read_npz(path: Path) -> dict[str, np.ndarray]:
     with np.load(path) as arrays:
         return {key: arrays[key] for key in arrays.files}
@@ -258,7 +303,13 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         action="store_true",
         help="print every setting these arguments give, defaults included, as YAML and exit",
     )
-    parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+    resuming = parser.add_mutually_exclusive_group()
+    resuming.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+    resuming.add_argument(
+        "--start-over",
+        action="store_true",
+        help="train the run in --out again from step 0: one that stopped before its first checkpoint",
+    )
     parser.add_argument("--reward", choices=REWARDS)
     parser.add_argument("--model", help="reward model folder (a pretraining run's model/)")
     parser.add_argument("--subtasks", type=int, choices=TCC_SCHEMES)
@@ -332,7 +383,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.print_config:
             print(yaml.safe_dump(config.to_dict(), sort_keys=False), end="")
             return 0
-        trainer = Trainer(config, args.out, resume=args.resume)
+        trainer = Trainer(config, args.out, resume=args.resume, start_over=args.start_over)
         result = trainer.train()
     except (ModelError, FileExistsError, ValueError) as error:
         print(f"inest-train: {error}", file=sys.stderr)

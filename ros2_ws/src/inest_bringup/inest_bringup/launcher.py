@@ -9,7 +9,7 @@ reward_trace.png; `--record FILE` adds the recorder (inest-record) to the graph.
 trains, simulators and reward node run `--nice` steps nicer than it (TRAINING_NICENESS) and on
 `--env-cpus` (every CPU but the first, so the agent's update has a CPU no simulator runs on). A node that
 exits is restarted (supervisor.py: `--respawn` times in a row, with back-off; the agent with
-resume:=true); a node that keeps dying or refuses its configuration stops the graph. Ctrl-C or
+resume:=true from its checkpoint, or start_over:=true, said on the terminal, if it had none); a node that keeps dying or refuses its configuration stops the graph. Ctrl-C or
 SIGTERM (or the agent finishing) stops every child, the agent first (it saves a checkpoint);
 the launcher then exits 130 (143 for SIGTERM).
 """
@@ -27,7 +27,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from inest_agent_node.evaluate import EvalResult, format_table
-from inest_agent_node.train import RESULTS_FILE
+from inest_agent_node.train import RESULTS_FILE, has_checkpoint
 from inest_reward_node.learning.runs import CONFIG_FILE
 
 from .recording import RecordingError, check_target
@@ -143,13 +143,30 @@ def stop(children: dict[str, subprocess.Popen]) -> None:
                 process.wait()
 
 
+def without_parameters(argv: list[str], assignments: tuple[str, ...]) -> list[str]:
+    """`argv` without its `-p NAME:=VALUE` pairs for these assignments."""
+    kept: list[str] = []
+    for item in argv:
+        if item in assignments and kept and kept[-1] == "-p":
+            kept.pop()
+        else:
+            kept.append(item)
+    return kept
+
+
 def resuming_agent(run_dir: Path) -> Callable[[str, list[str]], list[str]]:
-    """Restart commands: the agent continues its run from the last checkpoint once it has one."""
+    """Restart commands: the agent continues its run from the last checkpoint; one that died before
+    its first checkpoint starts its run over, and the launcher says so."""
 
     def command(name: str, argv: list[str]) -> list[str]:
-        if name == "agent" and (run_dir / "agent" / CONFIG_FILE).exists() and "resume:=true" not in argv:
+        agent_dir = run_dir / "agent"
+        if name != "agent" or not (agent_dir / CONFIG_FILE).exists():
+            return argv
+        argv = without_parameters(argv, ("resume:=true", "start_over:=true"))
+        if has_checkpoint(agent_dir):
             return [*argv, "-p", "resume:=true"]
-        return argv
+        print(f"inest-launch: the agent stopped before its first checkpoint; its run in {agent_dir} starts over")
+        return [*argv, "-p", "start_over:=true"]
 
     return command
 

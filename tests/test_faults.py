@@ -62,6 +62,8 @@ def test_bad_parameters_are_one_line_and_exit_2_on_every_node(tmp_path):
         (["inest-reward-node", "-p", "subtasks:=three"], ["parameter subtasks must be an integer, got 'three'"]),
         (["inest-reward-node", "-p", "max_pending:=0"], ["max_pending must be >= 1, got 0"]),
         (["inest-reward-node", "-p", "intrinsic.k:=1.5"], ["parameter intrinsic.k must be an integer, got 1.5"]),
+        (["inest-reward-node", "-p", "max_pending:=[1"], ["-p 'max_pending:=[1': the value is not valid YAML"]),
+        (["inest-reward-node", "-p", "max pending:=1"], ["-p 'max pending:=1' is not NAME:=VALUE"]),
         (["inest-agent-node", "-p", "subtasks:=three"], ["parameter subtasks must be an integer, got 'three'"]),
         (["inest-agent-node", "-p", "subtasks:=4"], ["subtasks must be one of (1, 3, 6), got 4"]),
         (["inest-agent-node", "-p", "sac.batch_size:=0"], ["sac.batch_size must be positive, got 0"]),
@@ -280,14 +282,22 @@ def wait_for_line(path: Path, text: str) -> None:
         time.sleep(0.2)
 
 
-def test_a_bad_parameter_stops_the_launcher_with_its_line_and_exit_2(tiny_model, tmp_path):
-    launcher = launch(tmp_path, tiny_model, str(fresh_domain()), "--no-agent", "--param", "reward:max_pending:=0")
-    assert launcher.wait(120) == 2
-    output = (tmp_path / "launcher.log").read_text()
-    assert (
-        "inest-launch: reward refused its configuration: inest-reward-node: max_pending must be >= 1, got 0" in output
-    )
-    assert "Traceback" not in output and "restarting" not in output
+def test_a_bad_configuration_stops_the_launcher_before_any_node_starts(tiny_model, tmp_path):
+    cases = {  # --param, the line that names it
+        "reward:max_pending:=0": "reward refused its configuration: inest-reward-node: max_pending must be >= 1, got 0",
+        "agent:sac.batch_size:=0": "agent refused its configuration: inest-agent-node: sac.batch_size must be positive",
+        "sim:image_size:=[1": "sim0 refused its configuration: inest-sim-node: -p 'image_size:=[1': the value is not",
+        "reward:model:=nowhere": "reward refused its configuration: inest-reward-node: ",
+    }
+    for index, (setting, expected) in enumerate(cases.items()):
+        folder = tmp_path / str(index)
+        folder.mkdir()
+        launcher = launch(folder, tiny_model, str(fresh_domain()), "--param", setting)
+        assert launcher.wait(120) == 2
+        output = (folder / "launcher.log").read_text()
+        assert f"inest-launch: {expected}" in output and "nothing was started" in output, output
+        assert "Traceback" not in output and "started" not in output.replace("nothing was started", "")
+        assert not list((folder / "graph" / "logs").glob("*.log"))  # no node ran, no log to clean up
 
 
 def assert_runs_as_environment(pid: int) -> None:

@@ -30,7 +30,7 @@ from .envs import with_observation
 from .evaluate import evaluate_vec_env, format_table
 from .graph_env import GraphVecEnv
 from .learners import learner_class
-from .train import CHECKPOINT_DIR, RESULTS_FILE, Trainer, deterministic
+from .train import CHECKPOINT_DIR, RESULTS_FILE, Trainer, check_resume, deterministic
 
 MODES = ("train", "evaluate")
 
@@ -81,6 +81,8 @@ class AgentNode(Node):
                 f"reward {self.train_config.reward!r} is scored in process by inest-train; over the graph the "
                 "reward is the reward node's (topic) or the simulators' own (env)"
             )
+        if self.settings.mode == "train":
+            check_resume(Path(self.settings.out), self.settings.resume, self.settings.start_over)
 
     def run(self) -> None:
         settings, config = self.settings, self.train_config

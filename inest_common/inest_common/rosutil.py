@@ -7,16 +7,20 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import os
+import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import rclpy
+import yaml
 from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental import EventsExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
 NANOSECONDS = 1_000_000_000
@@ -111,6 +115,32 @@ def spin_until_shutdown(node: Node) -> None:
         executor.shutdown()
 
 
+# set in a node's environment: build the node (every parameter checked, the model loaded), then
+# exit 0 without spinning, or 2 with the line naming what is wrong (inest-launch's check)
+CHECK_ONLY_ENV = "INEST_CHECK_ONLY"
+PARAMETER_RULE = re.compile(r"[A-Za-z_~][\w./~:]*:=(.*)", re.DOTALL)
+
+
+def malformed_parameter(argv: list[str]) -> str | None:
+    """What is wrong with the first `-p NAME:=VALUE` of `argv`'s ROS arguments that rcl could not
+    parse (it would fail with a traceback), or None."""
+    inside = False
+    for index, item in enumerate(argv):
+        if item in ("--ros-args", "--"):
+            inside = item == "--ros-args"
+        elif inside and item in ("-p", "--param") and index + 1 < len(argv):
+            rule = argv[index + 1]
+            match = PARAMETER_RULE.fullmatch(rule)
+            if match is None:
+                return f"-p {rule!r} is not NAME:=VALUE"
+            try:
+                if yaml.safe_load(match[1]) is None:
+                    return f"-p {rule!r} has no value"
+            except yaml.YAMLError as error:
+                return f"-p {rule!r}: the value is not valid YAML ({str(error).splitlines()[0]})"
+    return None
+
+
 def run_node(
     make_node: Callable[[], Node],
     spin: Callable[[Node], None] | None = None,
@@ -118,17 +148,27 @@ def run_node(
 ) -> int:
     """Init from sys.argv (so `--ros-args -p ... --params-file ...` work), spin, shut down cleanly
     on Ctrl-C or SIGTERM. `config_errors` (and ParameterError: a wrong type or an unknown name)
-    mean a bad configuration: one line on stderr, exit 2."""
-    rclpy.init(args=sys.argv)  # also turns SIGINT and SIGTERM into ExternalShutdownException
+    mean a bad configuration, as do arguments rcl cannot parse: one line on stderr, exit 2."""
+    program = Path(sys.argv[0]).name
+    if problem := malformed_parameter(sys.argv):
+        print(f"{program}: {problem}", file=sys.stderr)
+        return 2
+    try:
+        rclpy.init(args=sys.argv)  # also turns SIGINT and SIGTERM into ExternalShutdownException
+    except _rclpy.RCLError as error:  # arguments rcl refuses that the check above let through
+        print(f"{program}: cannot parse its ROS arguments: {str(error).split('. Error')[0]}", file=sys.stderr)
+        return 2
     node = None
     try:
         node = make_node()
         reject_unknown_parameters(node)
+        if os.environ.get(CHECK_ONLY_ENV):
+            return 0
         (spin or spin_until_shutdown)(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except config_errors as error:
-        print(f"{Path(sys.argv[0]).name}: {error}", file=sys.stderr)
+        print(f"{program}: {error}", file=sys.stderr)
         return 2
     except Exception:
         if rclpy.ok():

@@ -7,9 +7,12 @@ fast-discovery Fast DDS profile shipped next to the params file. The run folder 
 node's output in logs/, ROS's own logs in logs/ros/, the agent's run in agent/ and, at the end,
 reward_trace.png; `--record FILE` adds the recorder (inest-record) to the graph. While the agent
 trains, simulators and reward node run `--nice` steps nicer than it (TRAINING_NICENESS) and on
-`--env-cpus` (every CPU but the first, so the agent's update has a CPU no simulator runs on). A node that
-exits is restarted (supervisor.py: `--respawn` times in a row, with back-off; the agent with
-resume:=true from its checkpoint, or start_over:=true, said on the terminal, if it had none); a node that keeps dying or refuses its configuration stops the graph. Ctrl-C or
+`--env-cpus` (every CPU but the first, so the agent's update has a CPU no simulator runs on).
+Before any node starts, each kind is built once with its parameters and model and exits
+(`refused_configuration`): a bad configuration is one line and exit 2, nothing started. A node
+that exits is restarted (supervisor.py: `--respawn` times in a row, with back-off; the agent
+with resume:=true from its checkpoint, or start_over:=true, said on the terminal, if it had
+none); a node that keeps dying or refuses its configuration stops the graph. Ctrl-C or
 SIGTERM (or the agent finishing) stops every child, the agent first (it saves a checkpoint);
 the launcher then exits 130 (143 for SIGTERM).
 """
@@ -28,6 +31,7 @@ from pathlib import Path
 
 from inest_agent_node.evaluate import EvalResult, format_table
 from inest_agent_node.train import RESULTS_FILE, has_checkpoint
+from inest_common.rosutil import CHECK_ONLY_ENV
 from inest_reward_node.learning.runs import CONFIG_FILE
 
 from .recording import RecordingError, check_target
@@ -119,6 +123,26 @@ def node_commands(args: argparse.Namespace, run_dir: Path) -> list[tuple[str, li
         record = [sys.executable, "-m", "inest_bringup.recorder", str(args.record), "--namespaces", *namespaces]
         commands.insert(0, ("record", record))
     return commands
+
+
+def refused_configuration(commands: list[tuple[str, list[str]]], env: dict[str, str]) -> str | None:
+    """Build each kind of node once (one simulator stands for all), in parallel and without joining
+    the graph's work (CHECK_ONLY_ENV): every parameter checked and the model loaded before any node
+    starts, so a bad configuration stops nothing half-started. The first refusal's line, or None."""
+    kinds = {name.rstrip("0123456789"): (name, argv) for name, argv in commands if name != "record"}
+    checks = {
+        name: subprocess.Popen(
+            argv, env=env | {CHECK_ONLY_ENV: "1"}, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+        )
+        for name, argv in kinds.values()
+    }
+    refusals = []
+    for name, process in checks.items():
+        _, stderr = process.communicate()
+        if process.returncode:
+            lines = stderr.strip().splitlines() or [f"exit status {process.returncode}"]
+            refusals.append(f"{name} refused its configuration: {lines[-1]}")
+    return refusals[0] if refusals else None
 
 
 def print_results(path: Path) -> None:
@@ -233,6 +257,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"inest-launch: {error}", file=sys.stderr)
         return 2
     env = graph_environment(args.domain_id, run_dir / "logs" / "ros", args.discovery == "localhost")
+    if refusal := refused_configuration(commands, env):
+        print(f"inest-launch: {refusal}; nothing was started", file=sys.stderr)
+        return 2
     os.environ.update(env)
     import rclpy  # after the environment above: the monitor joins the same graph
     from rclpy.signals import SignalHandlerOptions

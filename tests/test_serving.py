@@ -97,11 +97,16 @@ def test_reset_restarts_the_tracker_and_accepts_a_restarted_clock():
     streams = StreamScorer(scorer(1))
     streams.scorer.trackers[0].completed = 2
     streams.submit(0, 50, FRAMES[0])
-    assert streams.flush()[0].subtask == 2
+    first = streams.flush()[0]
+    assert (first.subtask, first.episode_frame) == (2, 1)
+    for _ in range(2):  # a frame and its re-publish: the cached reward, the same count
+        streams.submit(0, 51, FRAMES[1])
+        assert streams.flush()[0].episode_frame == 2
     streams.reset(0)
     streams.submit(0, 1, FRAMES[0])  # a simulator that restarted: its clock starts over
     result = streams.flush()[0]
     assert result.subtask == 0 and not streams.stats.rejected
+    assert result.episode_frame == 1  # counted from the episode's start again: what tells the agent
 
 
 def test_frames_of_any_size_are_resized_to_the_encoder_input():

@@ -5,10 +5,12 @@ Environment i lives under namespace `namespaces[i]`: it publishes `action`, and 
 like it (see pairing.py). Resets go through the simulator's `reset` and the reward node's `reset_reward`
 services. When something stays silent for `timeout` seconds, it logs which topic of which
 simulator, re-sends the action (a lockstep simulator re-publishes a step it already took) and
-keeps waiting: a restarted reward node picks the run up where it stopped. A restarted simulator
-(its clock starts over, so it ignores the action) shows up as a new publisher of its
-`episode_status`: the environment is reset and its step in flight comes back as a broken one
-(BROKEN_STEP in its info, the episode truncated) that the learner does not store.
+keeps waiting. A restarted simulator (its clock starts over, so it ignores the action) shows up
+as a new publisher of its `episode_status`; a restarted reward node, whose trackers start over,
+as a reward whose `episode_frame` counts from 1 again in the middle of an episode. Either way
+the environment is reset, the restart logged, and its step in flight comes back as a broken one
+(BROKEN_STEP in its info, the episode truncated) that the learner does not store: the run
+goes on, and no step is learned from a subtask the reward forgot.
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ class GraphVecEnv(VecEnv):
         self.observations = np.zeros((self.num_envs, *self.observation_space.shape), dtype=np.float32)
         self.last_infos: list[dict[str, Any]] = [{} for _ in namespaces]  # each environment's latest step
         self.simulators: list[set[tuple[int, ...]]] = [set() for _ in namespaces]  # status publishers known
+        self.episode_frames = np.zeros(self.num_envs, dtype=np.int64)  # the reward's count at the last step
 
     # --- message intake ------------------------------------------------------------
     def on_status(self, index: int, msg: EpisodeStatus) -> None:
@@ -115,6 +118,7 @@ class GraphVecEnv(VecEnv):
         self.stamps[index] = stamp
         self.mailboxes[index].forget_before(stamp)
         self.simulators[index] = self.status_publishers(index)
+        self.episode_frames[index] = 0
         self.observations[index] = response.state
         self.last_infos[index] = self.step_info(EpisodeStatus(), Reward())  # stage 0, nothing scored yet
         return self.observations[index].copy()
@@ -182,12 +186,7 @@ class GraphVecEnv(VecEnv):
                 if index in results:
                     continue
                 if self.restarted(index):
-                    self.node.get_logger().warning(
-                        f"{self.namespaces[index] or '/'}: the simulator restarted; resetting it (its step is dropped)"
-                    )
-                    terminal = {"terminal_observation": self.observations[index].copy(), "TimeLimit.truncated": True}
-                    broken[index] = {**self.last_infos[index], **terminal, BROKEN_STEP: True}
-                    self.reset_env(index, None)
+                    self.break_episode(index, "the simulator restarted", broken)
                     results[index] = (int(self.stamps[index]), {})
                 else:
                     self.publish_action(index)
@@ -206,6 +205,18 @@ class GraphVecEnv(VecEnv):
                 infos.append(broken[index])
                 continue
             new_stamp, messages = results[index]
+            reward = messages.get(REWARD, Reward())
+            if self.learned_reward and reward.episode_frame <= self.episode_frames[index]:
+                self.break_episode(
+                    index,
+                    f"the reward node lost this episode's subtask progress (restarted? its tracker counts "
+                    f"{reward.episode_frame} frames, {self.episode_frames[index]} were scored before)",
+                    broken,
+                )
+                observations[index], dones[index] = self.observations[index], True
+                infos.append(broken[index])
+                continue
+            self.episode_frames[index] = reward.episode_frame
             status = messages[STATUS]
             observation = np.asarray(status.state, dtype=np.float32)
             if observation.shape != self.observation_space.shape:
@@ -213,7 +224,6 @@ class GraphVecEnv(VecEnv):
                     f"{self.namespaces[index] or '/'}: episode_status carries a state of {observation.size} values, "
                     f"expected {self.observation_space.shape[0]}"
                 )
-            reward = messages.get(REWARD, Reward())
             rewards[index] = reward.total if self.learned_reward else status.env_reward
             info = self.step_info(status, reward)
             self.stamps[index], self.observations[index], self.last_infos[index] = new_stamp, observation, dict(info)
@@ -225,6 +235,14 @@ class GraphVecEnv(VecEnv):
             observations[index] = observation
             infos.append(info)
         return observations, rewards, dones, infos
+
+    def break_episode(self, index: int, why: str, broken: dict[int, dict[str, Any]]) -> None:
+        """End environment `index`'s episode where it stands, its step in flight a broken one (not
+        learned from), and reset it; logged with `why`."""
+        self.node.get_logger().warning(f"{self.namespaces[index] or '/'}: {why}; resetting it (its step is dropped)")
+        terminal = {"terminal_observation": self.observations[index].copy(), "TimeLimit.truncated": True}
+        broken[index] = {**self.last_infos[index], **terminal, BROKEN_STEP: True}
+        self.reset_env(index, None)
 
     def close(self) -> None:
         self.updates.close()

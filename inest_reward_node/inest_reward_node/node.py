@@ -206,6 +206,7 @@ class RewardNode(Node):
             msg.subtask_bonus, msg.intrinsic_bonus = frame.bonus, frame.intrinsic
             msg.subtask, msg.num_subtasks = frame.subtask, self.streams.scorer.num_subtasks
             msg.subtask_completed = frame.completed_subtask
+            msg.episode_frame = frame.episode_frame
             self.reward_pubs[frame.stream].publish(msg)
             # the plain-number copies are for plots and recorders: published only while one listens,
             # since two more messages per frame cost the training graph (the agent reads `reward`)

@@ -51,6 +51,7 @@ class ScoredFrame:
     received: float  # time.perf_counter() when the frame arrived
     frame_id: str = ""  # the image's frame, handed back for the reward's header
     repeated: bool = False  # the cached reward of an already scored stamp
+    episode_frame: int = 0  # frames the stream's tracker has scored since its episode began (1 for the first)
 
 
 @dataclass
@@ -175,6 +176,7 @@ class StreamScorer:
         self.log = log or ThrottledLog()
         self.pending: list[deque[Pending]] = [deque() for _ in range(scorer.num_envs)]
         self.last: list[ScoredFrame | None] = [None] * scorer.num_envs
+        self.episode_frames = [0] * scorer.num_envs  # scored since each stream's tracker was reset
         self.newest: list[tuple[int, np.ndarray] | None] = [None] * scorer.num_envs  # (stamp, frame) accepted last
         # the stage head's second camera: its frames by stamp, waiting for their partners
         self.stage_frames: list[dict[int, np.ndarray]] = [{} for _ in range(scorer.num_envs)]
@@ -316,6 +318,7 @@ class StreamScorer:
         )
         now = time.perf_counter()
         for index, (_, stream, item) in enumerate(waiting):
+            self.episode_frames[stream] += 1
             scored = ScoredFrame(
                 stream,
                 item.stamp,
@@ -327,6 +330,7 @@ class StreamScorer:
                 bool(parts.switched[index]),
                 item.received,
                 item.frame_id,
+                episode_frame=self.episode_frames[stream],
             )
             self.last[stream] = scored
             results.append(scored)
@@ -353,6 +357,7 @@ class StreamScorer:
             self.pending[stream].clear()
         self.scorer.reset(stream)
         self.last[stream] = None
+        self.episode_frames[stream] = 0
         self.newest[stream] = None
 
     def take_stats(self) -> dict[str, float | int | str]:

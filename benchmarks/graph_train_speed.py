@@ -10,7 +10,7 @@ on every CPU but the first (inest-launch's defaults while the agent trains). Rou
 between the runs so machine noise hits all alike.
 Target: graph >= 0.9x in-process. Prints one JSON object.
 `graph_train_speed.py [MODEL_FOLDER] [--no-overlap] [--graph-threads=N] [--nice=N] [--env-cpus=CPUS]`
-(default model runs/pretrain-main/model; --no-overlap: updates after each step, as in process;
+(default model: runtime.model.DEFAULT_MODEL; --no-overlap: updates after each step, as in process;
 --nice=0: every node at the agent's priority; --env-cpus=all: nodes on any CPU, as inest-launch's
 `--env-cpus`; the nodes' output goes to runs/benchmarks/graph_train_speed/).
 """
@@ -31,6 +31,7 @@ from inest_agent_node.train import Trainer
 from inest_bringup.launcher import graph_environment
 from inest_bringup.supervisor import AUTO_CPUS, TRAINING_NICENESS, environment_prefix, format_cpus, training_cpus
 from inest_reward_node.runtime.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.model import DEFAULT_MODEL
 from train_speed import RANDOM_STEPS, ROUND_STEPS, ROUNDS, WARM_UP_STEPS, median_speeds, paired_ratio, trainer_speeds
 
 from inest_agent_node.config import SacConfig, TrainConfig
@@ -48,7 +49,7 @@ ENV_CPUS = training_cpus(next((a.split("=")[1] for a in sys.argv if a.startswith
 
 def main() -> None:
     arguments = [argument for argument in sys.argv[1:] if not argument.startswith("--")]
-    model = str(Path(arguments[0] if arguments else "runs/pretrain-main/model").resolve())
+    model = str(Path(arguments[0] if arguments else DEFAULT_MODEL).resolve())
     torch.set_num_threads(TrainConfig.threads)
     domain = 100 + os.getpid() % 50
     namespaces = [f"sim{index}" for index in range(SIMS)]

@@ -8,7 +8,7 @@ valid-frame latency percentiles (publish -> reward), valid frames answered, unco
 answered nor counted as dropped or stale in /diagnostics), malformed frames rejected, and the
 node's log lines about rejections. Target: valid-frame p99 <= 15 ms, uncounted 0. Prints one
 JSON object. `reward_node_flood.py [MODEL_FOLDER] [--seconds S]` (default
-runs/pretrain-main/model); further arguments go to the node (`-p threads:=2`).
+the committed default model, runtime.model.DEFAULT_MODEL); further arguments go to the node (`-p threads:=2`).
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from inest_bringup.launcher import graph_environment
 from inest_interfaces.msg import Reward
 from inest_reward_node.runtime.images import encode_rgb
+from inest_reward_node.runtime.model import DEFAULT_MODEL
 from sensor_msgs.msg import Image
 
 CAMERA_HZ, BURST_HZ = 30.0, 1000.0
@@ -104,7 +105,7 @@ def phase(node, publisher, frame: np.ndarray, encoding: str, burst: bool, second
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("model", nargs="?", default="runs/pretrain-main/model")
+    parser.add_argument("model", nargs="?", default=DEFAULT_MODEL)
     parser.add_argument("--seconds", type=float, default=10.0, help="per phase")
     args, node_args = parser.parse_known_args()
     rng = np.random.default_rng(0)

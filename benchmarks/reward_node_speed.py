@@ -5,7 +5,7 @@ frames from this process and times each frame from publishing to receiving its r
 (DDS both ways, decoding, encoder, tracker, novelty). Targets: >= 100 Hz sustained
 and p99 <= 15 ms with the default encoder on 2 cores, the node's cost per frame within 1.3x of
 the bare encoder forward. Prints one JSON object. `reward_node_speed.py [MODEL_FOLDER]`
-(default runs/pretrain-main/model, which scripts/run_main.sh creates); further arguments go to
+(default: the committed default model, runtime.model.DEFAULT_MODEL); further arguments go to
 the node (`-p threads:=2`).
 """
 
@@ -25,7 +25,7 @@ import torch
 from diagnostic_msgs.msg import DiagnosticArray
 from inest_bringup.launcher import graph_environment
 from inest_interfaces.msg import Reward
-from inest_reward_node.runtime.model import load_model
+from inest_reward_node.runtime.model import DEFAULT_MODEL, load_model
 from sensor_msgs.msg import Image
 
 from inest_sim_node import EnvConfig, SweepToTopEnv
@@ -98,7 +98,7 @@ def bare_forward_ms(model_folder: str, frames: np.ndarray, rate_hz: float | None
 
 
 def main() -> None:
-    model = sys.argv[1] if len(sys.argv) > 1 else "runs/pretrain-main/model"
+    model = sys.argv[1] if len(sys.argv) > 1 else DEFAULT_MODEL
     torch.set_num_threads(2)
     frames = simulator_frames(200)
     domain = 150 + os.getpid() % 50

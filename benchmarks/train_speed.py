@@ -2,7 +2,7 @@
 
 Prints one JSON object. Target: INEST >= 0.8x the env-reward speed (the encoder
 must not be the bottleneck). Needs a reward model: `train_speed.py [MODEL_FOLDER]`
-(default runs/pretrain-main/model, which `scripts/run_main.sh` creates), optionally
+(default: the committed default model, runtime.model.DEFAULT_MODEL), optionally
 followed by the torch thread count (default: the training config's).
 """
 
@@ -18,6 +18,7 @@ import numpy as np
 import torch
 from inest_agent_node.train import Trainer
 from inest_reward_node.runtime.intrinsic import IntrinsicConfig
+from inest_reward_node.runtime.model import DEFAULT_MODEL
 
 from inest_agent_node.config import SacConfig, TrainConfig
 
@@ -64,7 +65,7 @@ def median_speeds(speeds: dict[str, list[float]]) -> dict[str, int]:
 
 
 def main() -> None:
-    model = sys.argv[1] if len(sys.argv) > 1 else "runs/pretrain-main/model"
+    model = sys.argv[1] if len(sys.argv) > 1 else DEFAULT_MODEL
     threads = int(sys.argv[2]) if len(sys.argv) > 2 else TrainConfig.threads
     torch.set_num_threads(threads)
     common = {

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import re
 import subprocess
 import sys
 import time
@@ -104,7 +105,9 @@ def test_lockstep_training_over_the_graph_with_two_simulators(graph, tiny_model,
     )  # fmt: skip
     assert evaluation.wait(120) == 0, graph.log("evaluate")
     table = graph.log("evaluate")
-    assert "model.zip over the graph" in table and " 3 " in table.splitlines()[-1]
+    assert "model.zip over the graph" in table
+    evaluation = json.loads((tmp_path / "run" / "evaluation.json").read_text())
+    assert evaluation["final_evaluation"]["episodes"] == 3 and evaluation["policy"].endswith("checkpoint/model.zip")
 
 
 def count_steps(domain_env, until_steps: int, timeout: float) -> int:
@@ -151,12 +154,14 @@ def test_the_launcher_runs_the_whole_graph_and_writes_the_reward_trace(tiny_mode
     launched = subprocess.run(
         [BIN / "inest-launch", "--out", tmp_path / "graph", "--model", tiny_model, "--steps", "200",
          "--record", tmp_path / "graph.mcap",
-         "--domain-id", str(fresh_domain()), "--interval", "1", "--param", "sim:image_size:=48",
+         "--domain-id", str(fresh_domain()), "--interval", "1", "--param", "sim:image_size:=48", "--episode-lines",
          *[arg for value in TINY_AGENT[1::2] for arg in ("--param", f"agent:{value}")]],
         capture_output=True, text=True, timeout=240,
     )  # fmt: skip
     assert launched.returncode == 0, launched.stdout + launched.stderr
+    assert "remap rule" not in launched.stdout + launched.stderr  # --param NODE:NAME:=VALUE is the launcher's own
     assert "steps/s" in launched.stdout and "subtask" in launched.stdout
+    assert re.search(r"sim0: episode 1, score \d\.\d\d \(\d of 3 blocks in order\); subtask ", launched.stdout)
     assert "mean score" in launched.stdout  # the final evaluation table
     assert (tmp_path / "graph" / "reward_trace.png").stat().st_size > 1000
     for name in ("sim0", "reward", "agent", "record"):

@@ -55,6 +55,8 @@ def scene_model(tiny_tcc_run, tmp_path_factory):
         "3",
         "--wrong-order-episodes",
         "2",
+        "--stage-head-subtasks",
+        "3",
     ]
     assert pretrain.main(arguments) == 0
     return out / "model", arguments
@@ -73,6 +75,9 @@ def test_recalibration_keeps_the_encoder_and_fits_a_head_on_the_scene_camera(tin
     np.testing.assert_array_equal(source.goals(3).goals, model.goals(3).goals)  # same demonstrations
     head = model.goals(3).stage_head.config
     assert model.view == "ego" and head.view == "allo" and head.image_size == 32
+    # only the scheme asked for got a head; the others read the embedding (what auto resolves to)
+    assert model.goals(1).stage_head is None and model.goals(6).stage_head is None
+    assert RewardScorer(model, 1).evidence == "embedding" and RewardScorer(model, 3).evidence == "pixels"
     assert model.metadata.training["recalibrated_from"] == str(run_dir / "model")
     assert model.metadata.training["iterations"] == source.metadata.training["iterations"]
     capsys.readouterr()

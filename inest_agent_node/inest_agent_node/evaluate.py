@@ -81,11 +81,12 @@ def evaluate_vec_env(
 
 
 def format_table(rows: dict[str, EvalResult]) -> str:
-    lines = ["policy            episodes  mean score  success   0 blocks  1 block  2 blocks  3 blocks"]
+    width = max(17, *map(len, rows))
+    lines = [f"{'policy':<{width}} episodes  mean score  success   0 blocks  1 block  2 blocks  3 blocks"]
     for name, result in rows.items():
         shares = "  ".join(f"{share:>7.1%}" for share in result.blocks_share)
         lines.append(
-            f"{name:<17} {result.episodes:>8}  {result.mean_score:>10.3f}  {result.success_rate:>7.1%}  {shares}"
+            f"{name:<{width}} {result.episodes:>8}  {result.mean_score:>10.3f}  {result.success_rate:>7.1%}  {shares}"
         )
     return "\n".join(lines)
 

@@ -10,16 +10,18 @@ Parameters: every training setting of config.py (`reward`, `total_steps`, `sac.b
 - `step_timeout`: seconds of silence before a topic is reported (the node keeps waiting)
 - `overlap_updates` (a training setting, on by default here): run each SAC update while the
   simulators take the next step (the action then comes from a policy one update older)
-- `episodes`, `policy`: evaluate mode, N episodes of a saved policy (default: `out`'s checkpoint)
+- `episodes`, `policy`: evaluate mode, N episodes of a saved policy (default: `out`'s checkpoint),
+  written to `out`/evaluation.json
 Periodic evaluations during training run on an in-process copy of the simulator.
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from inest_common.files import read_run_file
+from inest_common.files import read_run_file, write_atomic
 from inest_common.rosutil import declare_dataclass, run_node
 from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 from inest_reward_node.runtime.model import ModelError
@@ -30,7 +32,7 @@ from .envs import with_observation
 from .evaluate import evaluate_vec_env, format_table
 from .graph_env import GraphVecEnv
 from .learners import learner_class
-from .train import CHECKPOINT_DIR, RESULTS_FILE, Trainer, check_resume, deterministic
+from .train import CHECKPOINT_DIR, EVALUATION_FILE, RESULTS_FILE, Trainer, check_resume, deterministic
 
 MODES = ("train", "evaluate")
 
@@ -94,6 +96,10 @@ class AgentNode(Node):
                 model = read_run_file(Path(policy), lambda path: learner_class(config.learner).load(path, env=env))
                 result = evaluate_vec_env(env, deterministic(model), settings.episodes, config.seed)
                 print(format_table({f"{Path(policy).name} over the graph": result}), flush=True)
+                evaluation = {"policy": policy, "final_evaluation": result.to_dict(), "config": config.to_dict()}
+                out = Path(settings.out) / EVALUATION_FILE
+                write_atomic(out, lambda path: path.write_text(json.dumps(evaluation, indent=2) + "\n"))
+                self.get_logger().info(f"wrote {out}")
                 return
             trainer = Trainer(config, settings.out, settings.resume, env=env, start_over=settings.start_over)
             try:

@@ -51,6 +51,7 @@ from .replay_store import load_replay_buffer, save_replay_buffer
 
 CHECKPOINT_DIR = "checkpoint"
 RESULTS_FILE = "results.json"
+EVALUATION_FILE = "evaluation.json"  # a saved policy evaluated over the graph (the agent node's evaluate mode)
 EXPLORATION_FILE = "exploration.npz"  # novelty memories and visited embeddings
 HISTORY_FILE = "history.json"  # the learning curve: [steps, mean score, std] per evaluation
 DIAGNOSTICS_FILE = "diagnostics.json"

@@ -41,14 +41,14 @@ from std_srvs.srv import Trigger
 from .runtime.config import RewardConfig
 from .runtime.images import RESIZE_MODES, ImageRejected, decode_image
 from .runtime.intrinsic import IntrinsicConfig
-from .runtime.model import TCC_SCHEMES, ModelError, load_model
+from .runtime.model import DEFAULT_MODEL, TCC_SCHEMES, ModelError, load_model
 from .runtime.rewards import RewardScorer
 from .runtime.serving import ScoredFrame, StreamScorer, ThrottledLog
 
 
 @dataclass(frozen=True)
 class RewardNodeConfig:
-    model: str = "runs/pretrain-main/model"  # a pretraining run's model/ folder
+    model: str = DEFAULT_MODEL  # a pretraining run's model/ folder; default: the committed one
     subtasks: int = 3
     variant: str = ""  # inest | xirl | holdr | reds; empty: the model's natural one for `subtasks`
     streams: tuple[str, ...] = ("",)  # namespaces of the image sources, e.g. ["sim0", "sim1"]

@@ -166,7 +166,7 @@ def calibrate(
             config.calibration.classifier,
         )
         head = config.calibration.stage_head
-        if head.iterations:
+        if head.iterations and scheme in config.calibration.stage_head_subtasks:
             labelled, played = head_episodes
             partial.stage_head = fit_stage_head(
                 [demo.frames for demo in labelled] + [clip.frames for clip in played],

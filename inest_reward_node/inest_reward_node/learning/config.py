@@ -10,7 +10,7 @@ from inest_sim_node.config import VIEWS
 
 from ..runtime.encoders import EncoderConfig
 from ..runtime.holdr import HoldRConfig
-from ..runtime.model import METHODS
+from ..runtime.model import METHODS, TCC_SCHEMES
 from ..runtime.reds import RedsConfig
 from ..runtime.shaping import ShapingConfig
 from ..runtime.stage_head import StageHeadConfig
@@ -57,6 +57,9 @@ class CalibrationConfig:
     clips: tuple[str, ...] = ()  # clip files (clips.save_clips) for the stage classifier only
     classifier: StageClassifierConfig = field(default_factory=StageClassifierConfig)
     stage_head: StageHeadConfig = field(default_factory=StageHeadConfig)  # the pixel one, same frames
+    # the subtask schemes that get a pixel stage head (each costs `stage_head.iterations`); a scheme
+    # without one reads the embedding's stage classifier (reward.stage_evidence auto)
+    stage_head_subtasks: tuple[int, ...] = TCC_SCHEMES
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.percentile <= 100.0:
@@ -65,6 +68,8 @@ class CalibrationConfig:
             raise ValueError("random_episodes must be >= 0, false_fire_rate in [0, 1], demo_pass_rate in (0, 1]")
         if self.wrong_order_episodes < 0:
             raise ValueError(f"wrong_order_episodes must be >= 0, got {self.wrong_order_episodes}")
+        if not set(self.stage_head_subtasks) <= set(TCC_SCHEMES):
+            raise ValueError(f"stage_head_subtasks must be among {TCC_SCHEMES}, got {self.stage_head_subtasks}")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

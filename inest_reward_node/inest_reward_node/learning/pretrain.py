@@ -34,6 +34,7 @@ from inest_sim_node.dataset import DatasetError, DemoDataset
 from ..runtime.encoders import ENCODER_KINDS, EncoderConfig
 from ..runtime.model import (
     METHODS,
+    TCC_SCHEMES,
     ModelError,
     ModelMetadata,
     RewardModel,
@@ -327,6 +328,14 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
             help=f"{text} (default %(default)s)",
         )
     parser.add_argument(
+        "--stage-head-subtasks",
+        type=int,
+        nargs="+",
+        choices=TCC_SCHEMES,
+        default=list(defaults.calibration.stage_head_subtasks),
+        help="the subtask schemes that get a pixel stage head (default: all); the others read the embedding",
+    )
+    parser.add_argument(
         "--stage-head-view",
         choices=("ego", "allo"),
         default=defaults.calibration.stage_head.view,
@@ -399,6 +408,7 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
             demo_pass_rate=args.demo_pass_rate,
             wrong_order_episodes=args.wrong_order_episodes,
             clips=tuple(args.clips),
+            stage_head_subtasks=tuple(args.stage_head_subtasks),
             stage_head=dataclasses.replace(
                 defaults.calibration.stage_head,
                 view=args.stage_head_view,

@@ -534,6 +534,20 @@ def json_ready(options: dict[str, Any] | None) -> dict[str, Any]:
     }
 
 
+def figure_title(scorer: dict[str, Any], scheme: int, view: str) -> str:
+    """A quality figure's title for people, from the scorer's description (describe_scorer)."""
+    title = f"{scorer['variant'].upper()} reward, {scheme} subtask{'s' * (scheme > 1)}, {view} camera"
+    config = scorer["config"]
+    if config is None:
+        return title
+    stage = f"{config['tracker']} tracker" + (
+        f" on {scorer['stage_evidence']} stage evidence" if config["tracker"] == "confirmed" else ""
+    )
+    if config["stage_source"] != "tracker":
+        stage = f"{config['stage_source']} stage"
+    return f"{title}\n{config['shaping']} shaping, {stage}"
+
+
 def format_options(options: dict[str, Any] | None) -> str:
     return " ".join(f"{key}={json.dumps(value)}" for key, value in json_ready(options).items())
 
@@ -657,8 +671,7 @@ def evaluate(
             kind: float(rows.any(axis=1).mean()) if len(rows) else None for kind, rows in flags.items()
         }
         plot_path = out / f"quality_{variant}_{scheme}.png"
-        options = f", {format_options(scorer_options)}" if scorer_options else ""
-        plot_scheme(results, f"{variant}{options}, {scheme} subtask(s), {model.view} camera", plot_path)
+        plot_scheme(results, figure_title(scorer, scheme, model.view), plot_path)
         summary["plot"] = plot_path.name
         report["schemes"][str(scheme)] = summary
     (out / REPORT_FILE).write_text(json.dumps(report, indent=2) + "\n")

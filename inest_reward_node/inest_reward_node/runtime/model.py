@@ -43,6 +43,9 @@ WEIGHTS_FILE = "weights.safetensors"
 MODEL_FILE = "model.json"
 METHODS = ("tcc", "holdr", "reds")
 TCC_SCHEMES = (1, 3, 6)  # the subtask schemes a TCC model is calibrated for
+# the reward model the product ships, relative to the checkout: its scores, and the trained policy
+# that uses it, are in docs/results.md
+DEFAULT_MODEL = "results/long-horizon/reward-model-scene96-600demos"
 
 
 class ModelError(RuntimeError):
@@ -133,8 +136,8 @@ class SubtaskGoals:
     def require_stage_head(self) -> StageHead:
         if self.stage_head is None:
             raise ModelError(
-                f"this model has no pixel stage head for its {len(self.goals)}-subtask goals "
-                f"(calibrated before the pixel stage head existed); {RECALIBRATE_HINT}"
+                f"this model has no pixel stage head for its {len(self.goals)}-subtask goals (not fitted: "
+                f"inest-pretrain --stage-head-subtasks, or calibrated before the head existed); {RECALIBRATE_HINT}"
             )
         return self.stage_head
 

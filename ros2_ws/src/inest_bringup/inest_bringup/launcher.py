@@ -30,7 +30,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from inest_agent_node.evaluate import EvalResult, format_table
-from inest_agent_node.train import RESULTS_FILE, has_checkpoint
+from inest_agent_node.train import EVALUATION_FILE, RESULTS_FILE, has_checkpoint
 from inest_common.rosutil import CHECK_ONLY_ENV
 from inest_reward_node.learning.runs import CONFIG_FILE
 
@@ -145,11 +145,17 @@ def refused_configuration(commands: list[tuple[str, list[str]]], env: dict[str, 
     return refusals[0] if refusals else None
 
 
-def print_results(path: Path) -> None:
-    if path.exists():
+def print_results(agent_dir: Path) -> None:
+    """The table of what the agent wrote: its training run's final evaluation, or a saved policy's."""
+    if (path := agent_dir / RESULTS_FILE).exists():
         results = json.loads(path.read_text())
         name = f"{results['config']['reward']} ({results['steps']} steps)"
-        print(format_table({name: EvalResult(**results["final_evaluation"])}))
+    elif (path := agent_dir / EVALUATION_FILE).exists():
+        results = json.loads(path.read_text())
+        name = f"{Path(results['policy']).parent.name or results['policy']} over the graph"
+    else:
+        return
+    print(format_table({name: EvalResult(**results["final_evaluation"])}))
 
 
 def stop(children: dict[str, subprocess.Popen]) -> None:
@@ -209,6 +215,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--discovery", choices=("localhost", "subnet"), default="localhost")
     parser.add_argument("--param", action="append", default=[], metavar="NODE:NAME:=VALUE", help="sim|reward|agent")
     parser.add_argument("--interval", type=float, default=2.0, help="seconds between progress lines")
+    parser.add_argument(
+        "--episode-lines",
+        action="store_true",
+        help="a line per finished episode: its score and the steps at which the learned subtask went up",
+    )
     parser.add_argument("--record", type=Path, metavar="FILE", help="record the reward topics to this MCAP file")
     parser.add_argument("--respawn", type=int, default=3, help="restarts in a row of a node that exits")
     parser.add_argument("--respawn-delay", type=float, default=1.0, help="seconds before a restart (doubles)")
@@ -272,8 +283,9 @@ def main(argv: list[str] | None = None) -> int:
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda number, frame: stopped_by.append(number))
     supervisor.start_all()
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # the handlers above stop the graph
-    monitor = GraphMonitor(simulator_namespaces(args.sims))
+    # not this process's arguments: rcl would read `--param NODE:NAME:=VALUE` as a deprecated remap rule
+    rclpy.init(args=[sys.argv[0]], signal_handler_options=SignalHandlerOptions.NO)  # the handlers above stop it
+    monitor = GraphMonitor(simulator_namespaces(args.sims), args.episode_lines)
     status = 0
     try:
         watch(monitor, args.interval, until=lambda: bool(stopped_by) or supervisor.check())
@@ -284,7 +296,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"inest-launch: {supervisor.outcome.message}", file=sys.stderr)
             status = supervisor.outcome.status
         else:
-            print_results(run_dir / "agent" / RESULTS_FILE)
+            print_results(run_dir / "agent")
     finally:
         stop(supervisor.processes)
         monitor.plot(run_dir / "reward_trace.png")

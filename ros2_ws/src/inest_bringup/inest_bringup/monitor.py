@@ -2,7 +2,10 @@
 
 Prints one line per interval: steps/s from the simulators' episode status, the latest learned
 reward and subtask per stream, finished episodes and their mean score, and the reward node's
-health from /diagnostics. `--plot` writes a reward-trace PNG on exit (Ctrl-C).
+health from /diagnostics. `--episode-lines` adds a line per finished episode: its score and the
+steps at which the learned reward's subtask went up (`sim0: episode 3, score 1.00 (3 of 3
+blocks in order); subtask 1 at step 14, 2 at 40, done at 63`). `--plot` writes a reward-trace
+PNG on exit (Ctrl-C).
 """
 
 from __future__ import annotations
@@ -33,14 +36,28 @@ class StreamView:
     subtask: str = "-"
     num_subtasks: int = 0
     trace: deque = field(default_factory=lambda: deque(maxlen=TRACE_STEPS))  # (reward, subtask)
+    climbs: list[tuple[int, int]] = field(default_factory=list)  # (step, subtask) each time a new high was reached
+    highest: int = 0  # this episode's highest subtask so far
+    finished: float | None = None  # the score of an episode whose last reward may still come
+
+
+def climb_text(climbs: list[tuple[int, int]], num_subtasks: int) -> str:
+    """`subtask 1 at step 14, 2 at 40, done at 63`: when the learned subtask went up."""
+    if not climbs:
+        return "subtask stayed at 0"
+    parts = [f"{'done' if subtask >= num_subtasks else subtask} at {'step ' * (i == 0)}{step}"
+             for i, (step, subtask) in enumerate(climbs)]  # fmt: skip
+    return "subtask " + ", ".join(parts)
 
 
 class GraphMonitor(Node):
-    def __init__(self, namespaces: list[str]) -> None:
+    def __init__(self, namespaces: list[str], episode_lines: bool = False) -> None:
         super().__init__("inest_monitor")
         self.namespaces = namespaces
         self.views = [StreamView() for _ in namespaces]
         self.health = ""
+        self.episode_lines = episode_lines
+        self.events: list[str] = []  # episode lines not printed yet
         for index, namespace in enumerate(namespaces):
             self.create_subscription(
                 Reward, namespaced(namespace, "reward"), lambda m, i=index: self.on_reward(i, m), 100
@@ -53,6 +70,12 @@ class GraphMonitor(Node):
 
     def on_reward(self, index: int, msg: Reward) -> None:
         view = self.views[index]
+        if msg.episode_frame <= 1:  # a new episode's first frame
+            self.end_episode(index)
+            view.climbs, view.highest = [], 0
+        if msg.subtask > view.highest:
+            view.climbs.append((msg.episode_frame, msg.subtask))
+            view.highest = msg.subtask
         done = " done" if msg.subtask >= msg.num_subtasks else ""  # Reward.subtask == num_subtasks: all done
         view.reward, view.subtask = msg.total, f"{msg.subtask}/{msg.num_subtasks}{done}"
         view.num_subtasks = msg.num_subtasks
@@ -65,6 +88,28 @@ class GraphMonitor(Node):
         if msg.truncated or msg.terminated:
             view.episodes += 1
             view.scores.append(msg.score)
+            view.finished = msg.score  # its line waits for the reward of its last frame
+
+    def end_episode(self, index: int) -> None:
+        """Queue the episode line of stream `index`'s finished episode, if there is one."""
+        view = self.views[index]
+        if view.finished is None:
+            return
+        if self.episode_lines:
+            blocks = round(view.finished * 3)
+            self.events.append(
+                f"{self.namespaces[index] or '/'}: episode {view.episodes}, score {view.finished:.2f} "
+                f"({blocks} of 3 blocks in order); {climb_text(view.climbs, view.num_subtasks)}"
+            )
+        view.finished = None
+
+    def take_events(self, final: bool = False) -> list[str]:
+        """The episode lines to print now; `final`: also those whose next episode never came."""
+        if final:
+            for index in range(len(self.views)):
+                self.end_episode(index)
+        events, self.events = self.events, []
+        return events
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
@@ -110,7 +155,10 @@ class GraphMonitor(Node):
                 rewards, subtasks = zip(*view.trace, strict=True)
                 top.plot(rewards, label=namespace or "/")
                 bottom.step(range(len(subtasks)), subtasks, where="post", label=namespace or "/")
-        top.set(ylabel="learned reward", title=f"reward trace (last {TRACE_STEPS} frames per stream)")
+        top.set(
+            ylabel="learned reward",
+            title=f"The learned reward and its subtask, last {TRACE_STEPS} frames per simulator",
+        )
         bottom.set(xlabel="frame", ylabel="subtask")
         subtasks = max((view.num_subtasks for view in self.views), default=0)
         if subtasks:
@@ -127,11 +175,18 @@ def watch(monitor: GraphMonitor, interval: float, until=lambda: False, duration:
     end = None if duration is None else time.monotonic() + duration
     next_print = time.monotonic() + interval
     live = sys.stdout.isatty()
+
+    def print_events(final: bool = False) -> None:
+        for event in monitor.take_events(final):
+            print(("\r\x1b[K" if live else "") + event, flush=True)  # above the live line
+
     while rclpy.ok() and not until() and (end is None or time.monotonic() < end):
         rclpy.spin_once(monitor, timeout_sec=0.1)
+        print_events()
         if time.monotonic() >= next_print:
             print(("\r" if live else "") + monitor.line(), end="" if live else "\n", flush=True)
             next_print += interval
+    print_events(final=True)
     if live:
         print()
 
@@ -142,9 +197,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--interval", type=float, default=1.0, help="seconds between lines")
     parser.add_argument("--duration", type=float, help="stop after this many seconds (default: Ctrl-C)")
     parser.add_argument("--plot", help="write a reward-trace PNG here on exit")
+    parser.add_argument("--episode-lines", action="store_true", help="a line per finished episode")
     args = parser.parse_args(argv)
     rclpy.init()
-    monitor = GraphMonitor(args.namespaces)
+    monitor = GraphMonitor(args.namespaces, args.episode_lines)
     try:
         watch(monitor, args.interval, duration=args.duration)
     except (KeyboardInterrupt, ExternalShutdownException):

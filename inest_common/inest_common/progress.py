@@ -13,15 +13,19 @@ from tqdm import tqdm
 LINE_INTERVAL = 30.0  # seconds between progress lines in a log
 
 
+UNSTARTED = "[00:00<?"  # what tqdm's first draw, before any progress, shows as its time
+
+
 class LineStream:
-    """Turns tqdm's carriage-return redraws into whole lines on `stream`."""
+    """Turns tqdm's carriage-return redraws into whole lines on `stream`, each once: not the empty
+    bar tqdm draws when it starts, which would put every short task in a log twice."""
 
     def __init__(self, stream: TextIO) -> None:
         self.stream = stream
 
     def write(self, text: str) -> None:
         line = text.replace("\r", "").strip()
-        if line:
+        if line and UNSTARTED not in line:
             self.stream.write(line + "\n")
 
     def flush(self) -> None:

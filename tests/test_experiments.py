@@ -129,6 +129,10 @@ def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, caps
     report = (tmp_path / "out" / "report.md").read_text()
     assert "| broken | 0 of 1 | | not finished |" in report and "Not started" in report
 
+    recorded = json.loads((tmp_path / "out" / "grid.json").read_text())
+    del recorded["cells"]["oracle/seed0"]["config"]["checkpoint_minutes"]  # recorded before it existed
+    (tmp_path / "out" / "grid.json").write_text(json.dumps(recorded))
+    assert main(["run", str(grid), "oracle"]) == 0  # how often it checkpoints is not what it trains
     methods["oracle"]["args"] += ["--observation", "state"]  # the finished cell's settings changed
     grid.write_text(yaml.safe_dump(yaml.safe_load(grid.read_text()) | {"methods": methods}))
     assert main(["run", str(grid), "oracle"]) == 2

@@ -99,6 +99,11 @@ class SacConfig:
             raise ValueError(f"sac.net_arch must list positive layer widths, got {list(self.net_arch)}")
 
 
+# TrainConfig settings that change how fast or how often it checkpoints, not what is trained: a
+# resumed run, or a grid cell continued, may change them (a resumed run may also train further)
+SPEED_ONLY_SETTINGS = frozenset({"reward_batch_steps", "overlap_updates", "checkpoint_every", "checkpoint_minutes"})
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     reward: str = "inest"  # env (oracle) | xirl | holdr | reds | inest | topic (the reward node's, over the graph)

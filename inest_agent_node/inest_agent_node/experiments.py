@@ -52,7 +52,7 @@ from inest_common.files import checkout_relative, read_json, read_run_file, writ
 from inest_common.progress import track
 from inest_reward_node.learning.runs import CONFIG_FILE
 
-from .config import GridConfig, ReferenceResult
+from .config import SPEED_ONLY_SETTINGS, GridConfig, ReferenceResult
 from .grid_quality import QUALITY_DIR, quality_table
 from .summary import CURVES_FILE, SUMMARY_FILE, plot_curves, read_run, summarise, write_summary
 from .train import CHECKPOINT_DIR, DIAGNOSTICS_FILE, HISTORY_FILE, RESULTS_FILE, continuation_flags, parse_args
@@ -151,7 +151,9 @@ def record_grid(grid: GridConfig, cells: list[Cell], out: Path) -> None:
         if before is not None and (cell.run_dir / CONFIG_FILE).exists():
             earlier, settings = checkout_relative(before["config"], root), checkout_relative(cell.settings, root)
             if differing := sorted(
-                key for key in earlier.keys() | settings.keys() if earlier.get(key) != settings.get(key)
+                key
+                for key in (earlier.keys() | settings.keys()) - SPEED_ONLY_SETTINGS
+                if earlier.get(key) != settings.get(key)
             ):
                 raise ValueError(
                     f"{cell.run_dir} was trained with other settings ({', '.join(differing)}): "

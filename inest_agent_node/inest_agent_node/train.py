@@ -36,7 +36,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, unwrap_vec_wrapper
 
 from .callbacks import training_callbacks
-from .config import REWARDS, TrainConfig
+from .config import REWARDS, SPEED_ONLY_SETTINGS, TrainConfig
 from .envs import ConcurrentUpdatesVecEnv, RewardVecEnv, build_env
 from .evaluate import EvalResult, evaluate_vec_env, format_table, plot_learning_curve
 from .learners import (
@@ -154,9 +154,8 @@ class Trainer:
 
     def check_run_dir(self, overwrite: bool, start_over: bool) -> None:
         settings = self.config.to_dict()
-        # may change on resume: they change how fast or how often, not what is trained
-        speed_only = {"total_steps", "reward_batch_steps", "overlap_updates", "checkpoint_every", "checkpoint_minutes"}
-        prepare_run_dir(self.run_dir, settings, overwrite, set() if start_over else set(settings) - speed_only)
+        must_match = set() if start_over else set(settings) - SPEED_ONLY_SETTINGS - {"total_steps"}
+        prepare_run_dir(self.run_dir, settings, overwrite, must_match)
 
     def save_checkpoint(self) -> int:
         """Model, replay buffer, history and novelty memories, each written whole before it replaces

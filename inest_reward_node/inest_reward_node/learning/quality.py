@@ -451,7 +451,7 @@ def plot_scheme(results: list[DemoQuality], title: str, path: Path, examples: in
         for i in range(result.cosine.shape[1]):
             middle.plot(min_max(result.cosine[:, i]), color=colours(i), label=f"subtask {i + 1}")
             middle.plot(result.gaussians[:, i], "--", color=colours(i), alpha=0.6)
-        middle.set(title="cosine to goal (solid) vs ground truth (dashed)", xlabel="frame")
+        middle.set(title="cosine to each goal (dashed: ideal)", xlabel="frame")
         frames = np.arange(len(result.stages))
         shaping = result.replay.distance
         for i in range(result.cosine.shape[1]):
@@ -540,8 +540,11 @@ def figure_title(scorer: dict[str, Any], scheme: int, view: str) -> str:
     config = scorer["config"]
     if config is None:
         return title
+    evidence = {"pixels": "the pixel stage head", "embedding": "the embedding's stage classifier"}
     stage = f"{config['tracker']} tracker" + (
-        f" on {scorer['stage_evidence']} stage evidence" if config["tracker"] == "confirmed" else ""
+        f" reading {evidence.get(scorer['stage_evidence'], scorer['stage_evidence'])}"
+        if config["tracker"] == "confirmed"
+        else ""
     )
     if config["stage_source"] != "tracker":
         stage = f"{config['stage_source']} stage"

@@ -1,48 +1,36 @@
 """Reward node intake under a flood of malformed frames: valid frames must still be answered, fast.
 
-Starts `inest-reward-node` as its own process on a private ROS domain and publishes, on one
-image topic, a valid camera at 30 Hz plus a 1 kHz burst of malformed frames (a wrong encoding,
-a short step, a data length that does not match, no data, 1x1 and oversized frames). Phases:
-96x96 rgb8 camera + burst, 640x480 bgr8 camera alone, 640x480 bgr8 camera + burst. For each:
-valid-frame latency percentiles (publish -> reward), valid frames answered, uncounted (neither
-answered nor counted as dropped or stale in /diagnostics), malformed frames rejected, and the
-node's log lines about rejections. Target: valid-frame p99 <= 15 ms, uncounted 0. Prints one
-JSON object. `reward_node_flood.py [MODEL_FOLDER] [--seconds S]` (default
-the committed default model, runtime.model.DEFAULT_MODEL); further arguments go to the node (`-p threads:=2`).
+Starts `inest-reward-node` as its own process on a private ROS domain (reward_node_harness.py)
+and publishes, on one image topic, a valid camera at 30 Hz plus a 1 kHz burst of malformed
+frames (a wrong encoding, a short step, a data length that does not match, no data, 1x1 and
+oversized frames). When the model's stage head reads a scene camera (the default model's), each
+valid frame's scene frame goes out beside it, stamped alike, at the same size. Phases: 96x96
+rgb8 camera + burst, 640x480 bgr8 camera alone, 640x480 bgr8 camera + burst, and with a scene
+camera 640x480 with 1 in 10 scene frames withheld. For each: valid-frame latency percentiles
+(publish -> reward), valid frames answered, counted as dropped or stale in /diagnostics, and
+uncounted; malformed frames rejected; the pairing's cost (frames that waited for their scene
+frame, the p99 of that wait, unpaired frames). Target: valid-frame p99 <= 15 ms, uncounted 0.
+Prints one JSON object; a phase with no answers, or with uncounted frames, ends the run with one
+line and exit 1. `reward_node_flood.py [MODEL_FOLDER] [--seconds S]` (default the committed
+default model, runtime.model.DEFAULT_MODEL); further arguments go to the node (`-p threads:=2`).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
-import sys
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from inest_bringup.launcher import graph_environment
-from inest_interfaces.msg import Reward
-from inest_reward_node.runtime.images import encode_rgb
 from inest_reward_node.runtime.model import DEFAULT_MODEL
-from sensor_msgs.msg import Image
+from reward_node_harness import RewardNodeUnderTest, image
 
 CAMERA_HZ, BURST_HZ = 30.0, 1000.0
+BENCHMARK = "reward_node_flood"
 
 
-def image(frame: np.ndarray, encoding: str, stamp: int) -> Image:
-    data, step = encode_rgb(frame, encoding)
-    msg = Image(height=frame.shape[0], width=frame.shape[1], encoding=encoding, step=step)
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp, 10**9)
-    msg.data = data
-    return msg
-
-
-def malformed() -> list[Image]:
+def malformed() -> list:
     """One of each kind the node must refuse; the stamps are far in the future, so a frame that
     slipped through would also make every valid frame after it look stale."""
     future = 4_000_000_000 * 10**9
@@ -58,46 +46,48 @@ def malformed() -> list[Image]:
     return [wrong_encoding, short_step, short_data, no_data, tiny, huge]
 
 
-def phase(node, publisher, frame: np.ndarray, encoding: str, burst: bool, seconds: float, seen) -> dict:
-    """Publish the camera (and the burst) for `seconds`; what became of every valid frame."""
-    received, diagnostics = seen
-    received.clear()
-    diagnostics.clear()
+def phase(
+    under_test: RewardNodeUnderTest,
+    name: str,
+    frames: tuple[np.ndarray, np.ndarray],
+    encoding: str,
+    burst: bool,
+    seconds: float,
+    withhold_every: int = 0,
+) -> dict:
+    """Publish the camera (with its scene frames, every `withhold_every`-th withheld) and the
+    burst for `seconds`; what became of every valid frame."""
+    under_test.reset()
+    frame, scene = frames
     bad = malformed() if burst else []
     sent: dict[int, float] = {}
     bad_sent = 0
     first_stamp = time.time_ns()
     start = time.perf_counter()
     next_camera = next_bad = start
-    while (now := time.perf_counter()) - start < seconds:
+    withheld = False
+    # ends on a paired frame: a frame is known unpaired once a newer scene frame comes
+    while (now := time.perf_counter()) - start < seconds or withheld:
         if now >= next_camera:
             stamp = first_stamp + len(sent) * 33_000_000
-            msg = image(frame, encoding, stamp)
+            withheld = withhold_every > 0 and len(sent) % withhold_every == withhold_every - 1
+            camera, scene_msg = image(frame, encoding, stamp), None if withheld else image(scene, encoding, stamp)
             sent[stamp] = time.perf_counter()
-            publisher.publish(msg)
+            under_test.publish(camera, scene_msg)
             next_camera += 1 / CAMERA_HZ
         while bad and now >= next_bad:  # catch up after a slow step: the burst keeps its rate
-            publisher.publish(bad[bad_sent % len(bad)])
+            under_test.camera.publish(bad[bad_sent % len(bad)])
             bad_sent += 1
             next_bad += 1 / BURST_HZ
-        rclpy.spin_once(node, timeout_sec=max(0.0, min(next_camera, next_bad if bad else next_camera) - now))
-    drain = time.perf_counter() + 2.5  # the last frames' rewards and two diagnostics messages
-    while time.perf_counter() < drain:
-        rclpy.spin_once(node, timeout_sec=0.05)
-    answered = [stamp for stamp in sent if stamp in received]
-    latencies = np.array([(received[stamp] - sent[stamp]) * 1e3 for stamp in answered] or [np.nan])
-    counted = sum(int(d.get("dropped", 0)) + int(d.get("rejected_stale", 0)) for d in diagnostics)
-    rejected = sum(int(d.get("rejected", 0)) - int(d.get("rejected_stale", 0)) for d in diagnostics)
+        rclpy.spin_once(under_test.node, timeout_sec=max(0.0, min(next_camera, next_bad if bad else next_camera) - now))
+    under_test.spin_for(2.5)  # the last frames' rewards and two diagnostics messages
+    rejected = sum(int(d.get("rejected", 0)) - int(d.get("rejected_stale", 0)) for d in under_test.diagnostics)
     return {
-        "camera": f"{frame.shape[1]}x{frame.shape[0]} {encoding} at {CAMERA_HZ:g} Hz",
+        "camera": f"{frame.shape[1]}x{frame.shape[0]} {encoding} at {CAMERA_HZ:g} Hz"
+        + (f" + {under_test.stage_camera} camera" if under_test.stage_camera else ""),
         "burst_hz": BURST_HZ if burst else 0,
-        "valid_sent": len(sent),
-        "answered": len(answered),
-        "counted_drops": counted,
-        "uncounted": len(sent) - len(answered) - counted,
-        "latency_p50_ms": round(float(np.percentile(latencies, 50)), 2),
-        "latency_p99_ms": round(float(np.percentile(latencies, 99)), 2),
-        "latency_max_ms": round(float(np.max(latencies)), 2),
+        **under_test.figures(name, sent),
+        "scene_frames_withheld": len(sent) // withhold_every if withhold_every else 0,
         "malformed_sent": bad_sent,
         "malformed_rejected": rejected,
     }
@@ -109,60 +99,33 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=10.0, help="per phase")
     args, node_args = parser.parse_known_args()
     rng = np.random.default_rng(0)
-    small = rng.integers(0, 256, (96, 96, 3), dtype=np.uint8)
-    large = rng.integers(0, 256, (480, 640, 3), dtype=np.uint8)
-    domain = 150 + os.getpid() % 50
-    with tempfile.TemporaryDirectory() as logs:
-        env = graph_environment(domain, logs)
-        os.environ.update(env)  # this process's own participant joins the same private graph
-        node_log = Path(logs) / "reward_node.log"
-        with open(node_log, "w") as log:
-            node_process = subprocess.Popen(
-                [str(Path(sys.executable).parent / "inest-reward-node"), "--ros-args",
-                 "-p", f"model:={Path(args.model).resolve()}", "-p", "image_topic:=camera/image_raw",
-                 "-p", "diagnostics_period:=0.5", *node_args],
-                env=env, stdout=log, stderr=subprocess.STDOUT,
-            )  # fmt: skip
-        rclpy.init(domain_id=domain)
-        node = rclpy.create_node("reward_flood")
-        received: dict[int, float] = {}
-        diagnostics: list[dict[str, str]] = []
-        node.create_subscription(
-            Reward, "reward", lambda m: received.__setitem__(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec,
-                                                             time.perf_counter()), 1000,
-        )  # fmt: skip
-        node.create_subscription(
-            DiagnosticArray, "/diagnostics",
-            lambda msg: diagnostics.extend({kv.key: kv.value for kv in s.values} for s in msg.status), 100,
-        )  # fmt: skip
-        publisher = node.create_publisher(Image, "camera/image_raw", 1000)
-        seen = (received, diagnostics)
-        try:
-            deadline = time.monotonic() + 60
-            while publisher.get_subscription_count() == 0 or node.count_publishers("reward") == 0:
-                rclpy.spin_once(node, timeout_sec=0.1)
-                if time.monotonic() > deadline or node_process.poll() is not None:
-                    sys.exit("reward_node_flood: the reward node did not come up:\n" + node_log.read_text())
-            phase(node, publisher, small, "rgb8", False, 2.0, seen)  # warm-up
-            phases = {
-                "flood_96": phase(node, publisher, small, "rgb8", True, args.seconds, seen),
-                "camera_640x480": phase(node, publisher, large, "bgr8", False, args.seconds, seen),
-                "flood_640x480": phase(node, publisher, large, "bgr8", True, args.seconds, seen),
-            }
-        finally:
-            node.destroy_node()
-            rclpy.shutdown()
-            node_process.terminate()
-            node_process.wait()
-        lines = node_log.read_text().splitlines()
+    small = (rng.integers(0, 256, (96, 96, 3), dtype=np.uint8), rng.integers(0, 256, (96, 96, 3), dtype=np.uint8))
+    large = tuple(rng.integers(0, 256, (480, 640, 3), dtype=np.uint8) for _ in range(2))
+    under_test = RewardNodeUnderTest(BENCHMARK, args.model, node_args)
+    try:
+        under_test.wait_until_ready()
+        phase(under_test, "warm-up", small, "rgb8", False, 2.0)
+        phases = {
+            "flood_96": phase(under_test, "flood_96", small, "rgb8", True, args.seconds),
+            "camera_640x480": phase(under_test, "camera_640x480", large, "bgr8", False, args.seconds),
+            "flood_640x480": phase(under_test, "flood_640x480", large, "bgr8", True, args.seconds),
+        }
+        if under_test.stage_camera:
+            phases["camera_640x480_scene_gaps"] = phase(
+                under_test, "camera_640x480_scene_gaps", large, "bgr8", False, args.seconds, withhold_every=10
+            )
+        lines = under_test.log_lines()
+    finally:
+        under_test.close()
     print(
         json.dumps(
             {
-                "benchmark": "reward_node_flood",
+                "benchmark": BENCHMARK,
                 **phases,
                 "node_log_lines_about_rejections": sum("rejected" in line for line in lines),
                 "targets": {"latency_p99_ms": 15, "uncounted": 0},
                 "model": args.model,
+                "stage_camera": under_test.stage_camera,
                 "seconds_per_phase": args.seconds,
             }
         )

@@ -170,7 +170,7 @@ class RewardNode(Node):
         else:
             stamp = stamp_ns(msg.header.stamp)
             if stage:
-                self.streams.submit_stage(stream, stamp, frame)
+                self.streams.submit_stage(stream, stamp, frame, received)
             else:
                 if msg.height != msg.width:
                     self.log.once(

@@ -65,6 +65,12 @@ class Pending:
 
 
 @dataclass
+class StageFrame:
+    frame: np.ndarray  # already fitted to the stage head's input
+    received: float  # time.perf_counter() when it arrived
+
+
+@dataclass
 class ServingStats:
     """Counters and latencies since the last report (diagnostics)."""
 
@@ -77,16 +83,20 @@ class ServingStats:
     stamp_resets: int = 0  # backward stamps that started a new episode
     last_rejection: str = ""
     latencies: list[float] = field(default_factory=list)  # seconds, arrival -> scored
+    pair_waits: list[float] = field(default_factory=list)  # seconds a frame waited for its stage frame
     batches: int = 0
     since: float = field(default_factory=time.perf_counter)
 
     def summary(self) -> dict[str, float | int | str]:
         elapsed = max(time.perf_counter() - self.since, 1e-9)
         latencies = np.array(self.latencies) * 1e3 if self.latencies else np.zeros(1)
+        pair_waits = np.array(self.pair_waits) * 1e3 if self.pair_waits else np.zeros(1)
         return {
             "rate_hz": self.scored / elapsed,
             "latency_p50_ms": float(np.percentile(latencies, 50)),
             "latency_p99_ms": float(np.percentile(latencies, 99)),
+            "waited_for_stage_frame": len(self.pair_waits),  # frames that came before their partner
+            "stage_wait_p99_ms": float(np.percentile(pair_waits, 99)),
             "mean_batch": self.scored / max(self.batches, 1),
             "scored": self.scored,
             "repeated": self.repeated,
@@ -179,7 +189,7 @@ class StreamScorer:
         self.episode_frames = [0] * scorer.num_envs  # scored since each stream's tracker was reset
         self.newest: list[tuple[int, np.ndarray] | None] = [None] * scorer.num_envs  # (stamp, frame) accepted last
         # the stage head's second camera: its frames by stamp, waiting for their partners
-        self.stage_frames: list[dict[int, np.ndarray]] = [{} for _ in range(scorer.num_envs)]
+        self.stage_frames: list[dict[int, StageFrame]] = [{} for _ in range(scorer.num_envs)]
         self.stats = ServingStats()
         self.totals: Counter[str] = Counter()  # every count since the start, for a reader that missed a report
         self.arrivals = 0  # frames submitted so far, of either camera: what a callback brought
@@ -189,12 +199,13 @@ class StreamScorer:
         """The second camera the scorer's stage head reads (submit_stage), or None."""
         return self.scorer.stage_camera
 
-    def submit_stage(self, stream: int, stamp: int, frame: np.ndarray) -> None:
+    def submit_stage(self, stream: int, stamp: int, frame: np.ndarray, received: float | None = None) -> None:
         """The stage head's camera frame of `stamp` on `stream`; kept until its partner is scored.
         Only the newest few are kept: a partner that never comes must not grow the store."""
         self.arrivals += 1
         kept = self.stage_frames[stream]
-        kept[stamp] = fit_square(frame, self.scorer.image_size, self.resize)
+        arrived = time.perf_counter() if received is None else received
+        kept[stamp] = StageFrame(fit_square(frame, self.scorer.image_size, self.resize), arrived)
         while len(kept) > 4 * self.max_pending:
             del kept[next(iter(kept))]
             self.stats.dropped["unpaired"] += 1
@@ -206,13 +217,16 @@ class StreamScorer:
             return READY
         kept = self.stage_frames[stream]
         if item.stamp == 0 and kept:  # zero stamps cannot pair: the newest scene frame
-            item.stage_frame = kept.pop(next(reversed(kept)))
+            partner = kept.pop(next(reversed(kept)))
         elif item.stamp in kept:
-            item.stage_frame = kept.pop(item.stamp)
+            partner = kept.pop(item.stamp)
         elif any(stamp > item.stamp for stamp in kept):
             return LOST
         else:
             return WAITING
+        item.stage_frame = partner.frame
+        if partner.received > item.received:  # the frame waited for it: the pairing's own cost
+            self.stats.pair_waits.append(partner.received - item.received)
         for orphan in [stamp for stamp in kept if stamp < item.stamp]:  # their partners are past
             del kept[orphan]
             self.stats.dropped["unpaired"] += 1

@@ -135,6 +135,9 @@ def test_corrupt_run_files_and_an_empty_resume_are_one_line_and_exit_2(saved_run
         assert_refused(process, "inest-train: cannot read", str(runs[name] / "checkpoint" / name))
         assert (runs[name] / "checkpoint" / name).read_bytes() == before[name]  # nothing saved is lost
     assert_refused(empty, f"nothing to resume in {tmp_path / 'never-ran'}")
+    pretrain = start(tmp_path, "inest-pretrain", str(tmp_path / "no-dataset"), "--out", str(tmp_path / "no-model"))
+    assert_refused(pretrain, f"inest-pretrain: no dataset at {tmp_path / 'no-dataset'}")
+    assert not (tmp_path / "no-model").exists()  # nothing written before the refusal: a rerun is not blocked
     assert_refused(agent, "inest-agent-node: nothing to resume in", "no-agent-run")
 
 
@@ -280,6 +283,29 @@ def launch(tmp_path: Path, tiny_model: Path, *extra: str) -> subprocess.Popen:
 def wait_for_line(path: Path, text: str) -> None:
     while text not in path.read_text():
         time.sleep(0.2)
+
+
+def test_a_killed_launcher_takes_its_nodes_along_and_the_agent_checkpoints_for_a_resume(tiny_model, tmp_path):
+    domain = fresh_domain()
+    agent = [arg for value in TINY_AGENT[1::2] for arg in ("--param", f"agent:{value}")]
+    launcher = launch(tmp_path, tiny_model, str(domain), "--steps", "100000", *agent)
+    assert count_steps(graph_environment(domain, tmp_path / "ros"), 150, timeout=180) >= 150
+    log = (tmp_path / "launcher.log").read_text()
+    pids = [int(pid) for pid in re.findall(r"started \w+ \(pid (\d+)\)", log)]
+    launcher.kill()  # SIGKILL: the launcher cannot pass anything on itself
+    launcher.wait()
+    deadline = time.monotonic() + 60
+    while any(Path(f"/proc/{pid}").exists() for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not [pid for pid in pids if Path(f"/proc/{pid}").exists()]  # no node outlives it
+    agent_log = (tmp_path / "graph" / "logs" / "agent.log").read_text()
+    steps = int(re.search(r"stopped at step (\d+); checkpoint saved", agent_log)[1])
+    resumed = launch(tmp_path, tiny_model, str(domain), "--steps", str(steps + 50), "--resume", *agent)
+    assert resumed.wait(180) == 0
+    assert (
+        f"the agent resumes {tmp_path / 'graph' / 'agent'} from its checkpoint at step {steps}"
+        in (tmp_path / "launcher.log").read_text()
+    )
 
 
 def test_a_bad_configuration_stops_the_launcher_before_any_node_starts(tiny_model, tmp_path):

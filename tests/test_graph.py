@@ -105,7 +105,7 @@ def test_lockstep_training_over_the_graph_with_two_simulators(graph, tiny_model,
     )  # fmt: skip
     assert evaluation.wait(120) == 0, graph.log("evaluate")
     table = graph.log("evaluate")
-    assert "model.zip over the graph" in table
+    assert "checkpoint/model.zip over the graph" in table
     evaluation = json.loads((tmp_path / "run" / "evaluation.json").read_text())
     assert evaluation["final_evaluation"]["episodes"] == 3 and evaluation["policy"].endswith("checkpoint/model.zip")
 
@@ -161,7 +161,8 @@ def test_the_launcher_runs_the_whole_graph_and_writes_the_reward_trace(tiny_mode
     assert launched.returncode == 0, launched.stdout + launched.stderr
     assert "remap rule" not in launched.stdout + launched.stderr  # --param NODE:NAME:=VALUE is the launcher's own
     assert "steps/s" in launched.stdout and "subtask" in launched.stdout
-    assert re.search(r"sim0: episode 1, score \d\.\d\d \(\d of 3 blocks in order\); subtask ", launched.stdout)
+    episode = r"sim0: episode 1: \d of 3 blocks placed in order \(score \d\.\d\d\); the learned reward's subtask "
+    assert re.search(episode, launched.stdout)
     assert "mean score" in launched.stdout  # the final evaluation table
     assert (tmp_path / "graph" / "reward_trace.png").stat().st_size > 1000
     for name in ("sim0", "reward", "agent", "record"):

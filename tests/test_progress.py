@@ -17,8 +17,10 @@ def test_a_log_gets_whole_lines_and_a_terminal_gets_the_bar():
     for _ in track(range(1000), desc="work", file=log):
         pass
     lines = log.getvalue().splitlines()
-    assert "\r" not in log.getvalue() and len(lines) == 1  # the last line only: no empty start, no redraws
+    assert "\r" not in log.getvalue() and 1 <= len(lines) <= 3  # first and last line, no redraws
     assert lines[-1].startswith("work: 100%") and "1000/1000" in lines[-1]
+    # never redrawn by tqdm's monitor thread, which would repeat the last line with a stale count
+    assert track(range(3), file=io.StringIO()).maxinterval == float("inf")
     log = io.StringIO()
     for _ in track(range(10), desc="nested", file=log, leave=False):  # a bar a terminal would clear
         pass

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import ctypes
 import io
 import itertools
 import json
@@ -49,6 +48,7 @@ from typing import Any
 import numpy as np
 import yaml
 from inest_common.files import checkout_relative, read_json, read_run_file, write_atomic
+from inest_common.processes import dies_with_parent
 from inest_common.progress import track
 from inest_reward_node.learning.runs import CONFIG_FILE
 
@@ -64,8 +64,6 @@ REPORT_FILE = "report.md"
 REPORT_FILES = (REPORT_FILE, SUMMARY_FILE, CURVES_FILE, GRID_FILE)
 RUN_FILES = (CONFIG_FILE, RESULTS_FILE, "learning_curve.png", "coverage.png")
 EXECUTORS = ("local", "ray")
-PR_SET_PDEATHSIG = 1  # prctl(2)
-LIBC = ctypes.CDLL(None) if sys.platform == "linux" else None  # loaded here: the child only calls it
 
 
 @dataclass(frozen=True)
@@ -165,12 +163,6 @@ def record_grid(grid: GridConfig, cells: list[Cell], out: Path) -> None:
     write_atomic(path, lambda temporary: temporary.write_text(json.dumps(document, indent=2) + "\n"))
 
 
-def die_with_parent() -> None:
-    """In the training process before it starts (Linux): be killed when the runner or Ray worker
-    that started it dies, so that no orphaned run trains on beside the one a rerun resumes."""
-    LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-
-
 def run_cell(cell: Cell) -> int:
     """Train one cell as an inest-train subprocess (continuing it if it had started), its output
     appended to its log; the exit status. The same function runs here and in a Ray worker."""
@@ -185,7 +177,9 @@ def run_cell(cell: Cell) -> int:
             stderr=subprocess.STDOUT,
             cwd=cell.workdir,
             check=False,
-            preexec_fn=die_with_parent if LIBC is not None else None,
+            # killed when the runner or Ray worker that started it dies, so that no orphaned run
+            # trains on beside the one a rerun resumes
+            preexec_fn=dies_with_parent(signal.SIGKILL),
         ).returncode
 
 

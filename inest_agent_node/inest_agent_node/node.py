@@ -95,8 +95,14 @@ class AgentNode(Node):
                 policy = settings.policy or str(Path(settings.out) / CHECKPOINT_DIR / "model.zip")
                 model = read_run_file(Path(policy), lambda path: learner_class(config.learner).load(path, env=env))
                 result = evaluate_vec_env(env, deterministic(model), settings.episodes, config.seed)
-                print(format_table({f"{Path(policy).name} over the graph": result}), flush=True)
-                evaluation = {"policy": policy, "final_evaluation": result.to_dict(), "config": config.to_dict()}
+                label = f"{Path(policy).parent.name}/{Path(policy).name} over the graph"
+                print(format_table({label: result}), flush=True)
+                evaluation = {
+                    "policy": policy,
+                    "label": label,
+                    "final_evaluation": result.to_dict(),
+                    "config": config.to_dict(),
+                }
                 out = Path(settings.out) / EVALUATION_FILE
                 write_atomic(out, lambda path: path.write_text(json.dumps(evaluation, indent=2) + "\n"))
                 self.get_logger().info(f"wrote {out}")

@@ -257,8 +257,8 @@ def check_resume(run_dir: Path, resume: bool, start_over: bool) -> None:
     if resume and not has_checkpoint(run_dir):
         raise RunFileError(
             f"nothing to resume in {run_dir}: the run stopped before its first checkpoint; "
-            "start it over from step 0 (inest-train --start-over, the agent node's start_over:=true) "
-            "or pick a new folder"
+            "start it over from step 0 (inest-train --start-over; the agent node's start_over:=true, "
+            "inest-launch --param agent:start_over:=true) or pick a new folder"
         )
     if start_over and has_checkpoint(run_dir):
         steps = read_run_file(run_dir / CHECKPOINT_DIR / CHECKPOINT_INFO, read_json).get("steps")

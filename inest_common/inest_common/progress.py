@@ -13,19 +13,15 @@ from tqdm import tqdm
 LINE_INTERVAL = 30.0  # seconds between progress lines in a log
 
 
-UNSTARTED = "[00:00<?"  # what tqdm's first draw, before any progress, shows as its time
-
-
 class LineStream:
-    """Turns tqdm's carriage-return redraws into whole lines on `stream`, each once: not the empty
-    bar tqdm draws when it starts, which would put every short task in a log twice."""
+    """Turns tqdm's carriage-return redraws into whole lines on `stream`."""
 
     def __init__(self, stream: TextIO) -> None:
         self.stream = stream
 
     def write(self, text: str) -> None:
         line = text.replace("\r", "").strip()
-        if line and UNSTARTED not in line:
+        if line:
             self.stream.write(line + "\n")
 
     def flush(self) -> None:
@@ -38,5 +34,8 @@ def track(iterable: Iterable[Any] | None = None, **kwargs: Any) -> tqdm:
     if kwargs.get("disable") or stream.isatty():
         return tqdm(iterable, file=stream, **kwargs)
     kwargs.setdefault("mininterval", LINE_INTERVAL)
+    # tqdm's monitor thread redraws a bar quiet for `maxinterval` (10 s) with the count of its last
+    # draw (a loop over an iterable keeps its count to itself between draws): in a log, each line again
+    kwargs.setdefault("maxinterval", float("inf"))
     kwargs["leave"] = True  # a log keeps the final line: leave=False would end it on the first one, at 0 %
     return tqdm(iterable, file=LineStream(stream), ascii=True, ncols=100, **kwargs)

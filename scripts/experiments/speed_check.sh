@@ -5,7 +5,7 @@
 # that revision (a git worktree, its packages first on the path) into OUT/base/, alternating
 # with this tree's, so a refactoring can be shown to leave the speed unchanged.
 #   bash scripts/experiments/speed_check.sh [BASE_REV] [OUT]   # OUT default results/benchmarks
-# Environment: INEST_MODEL (reward model folder, default results/long-horizon/reward-model),
+# Environment: INEST_MODEL (reward model folder, default the committed default model),
 # INEST_ONLY (benchmark names to run, e.g. "graph_train_speed reward_node_flood"; default all).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -13,7 +13,7 @@ cd "$ROOT"
 BASE=${1:-}
 OUT=$(realpath -m "${2:-$ROOT/results/benchmarks}")
 BIN="${INEST_VENV:-$ROOT/.venv}/bin"
-MODEL=$(realpath "${INEST_MODEL:-results/long-horizon/reward-model}")
+MODEL=$(realpath "${INEST_MODEL:-results/long-horizon/reward-model-scene96-600demos}")
 mkdir -p "$OUT"
 for name in ${INEST_ONLY:-}; do
   [ -f "benchmarks/$name.py" ] || { echo "speed_check: no benchmark $name (INEST_ONLY)" >&2; exit 2; }

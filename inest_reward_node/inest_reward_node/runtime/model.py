@@ -46,6 +46,7 @@ TCC_SCHEMES = (1, 3, 6)  # the subtask schemes a TCC model is calibrated for
 # the reward model the product ships, relative to the checkout: its scores, and the trained policy
 # that uses it, are in docs/results.md
 DEFAULT_MODEL = "results/long-horizon/reward-model-scene96-600demos"
+CHECKOUT = Path(__file__).resolve().parents[3]  # this source tree's root (an installed copy has no results/)
 
 
 class ModelError(RuntimeError):
@@ -312,8 +313,11 @@ def check_expectations(
 def load_model(
     folder: str | Path, view: str | None = None, image_size: int | None = None, scheme: int | None = None
 ) -> RewardModel:
-    """Load a model folder; any expectation given (view, input size, subtask scheme) must match it."""
+    """Load a model folder; any expectation given (view, input size, subtask scheme) must match it.
+    DEFAULT_MODEL is found from any working folder (the checkout's copy)."""
     folder = Path(folder)
+    if str(folder) == DEFAULT_MODEL and not folder.exists() and (CHECKOUT / DEFAULT_MODEL).exists():
+        folder = CHECKOUT / DEFAULT_MODEL
     metadata = read_model_metadata(folder)
     check_expectations(metadata, folder, view, image_size, scheme)
     if metadata.method == "reds" and metadata.reds is None:

@@ -30,7 +30,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from inest_agent_node.evaluate import EvalResult, format_table
-from inest_agent_node.train import EVALUATION_FILE, RESULTS_FILE, has_checkpoint
+from inest_agent_node.train import CHECKPOINT_DIR, CHECKPOINT_INFO, EVALUATION_FILE, RESULTS_FILE, has_checkpoint
 from inest_common.rosutil import CHECK_ONLY_ENV
 from inest_reward_node.learning.runs import CONFIG_FILE
 
@@ -152,7 +152,7 @@ def print_results(agent_dir: Path) -> None:
         name = f"{results['config']['reward']} ({results['steps']} steps)"
     elif (path := agent_dir / EVALUATION_FILE).exists():
         results = json.loads(path.read_text())
-        name = f"{Path(results['policy']).parent.name or results['policy']} over the graph"
+        name = results["label"]
     else:
         return
     print(format_table({name: EvalResult(**results["final_evaluation"])}))
@@ -271,6 +271,9 @@ def main(argv: list[str] | None = None) -> int:
     if refusal := refused_configuration(commands, env):
         print(f"inest-launch: {refusal}; nothing was started", file=sys.stderr)
         return 2
+    if args.resume and has_checkpoint(agent_dir := run_dir / "agent"):
+        steps = json.loads((agent_dir / CHECKPOINT_DIR / CHECKPOINT_INFO).read_text())["steps"]
+        print(f"inest-launch: the agent resumes {agent_dir} from its checkpoint at step {steps}", flush=True)
     os.environ.update(env)
     import rclpy  # after the environment above: the monitor joins the same graph
     from rclpy.signals import SignalHandlerOptions

@@ -3,9 +3,10 @@
 Prints one line per interval: steps/s from the simulators' episode status, the latest learned
 reward and subtask per stream, finished episodes and their mean score, and the reward node's
 health from /diagnostics. `--episode-lines` adds a line per finished episode: its score and the
-steps at which the learned reward's subtask went up (`sim0: episode 3, score 1.00 (3 of 3
-blocks in order); subtask 1 at step 14, 2 at 40, done at 63`). `--plot` writes a reward-trace
-PNG on exit (Ctrl-C).
+steps at which the learned reward's subtask went up (`sim0: episode 3: 3 of 3 blocks placed in
+order (score 1.00); the learned reward's subtask 1 at step 14, 2 at 40, done at 63`). A line that would only repeat
+the last one's step count (a graph waiting to start, a final evaluation) is left out, but one
+comes at least every QUIET_LINE_S. `--plot` writes a reward-trace PNG on exit (Ctrl-C).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 TRACE_STEPS = 500  # steps per stream kept for the reward-trace plot
+QUIET_LINE_S = 30.0  # seconds between lines while no step is taken
 
 
 @dataclass
@@ -42,7 +44,8 @@ class StreamView:
 
 
 def climb_text(climbs: list[tuple[int, int]], num_subtasks: int) -> str:
-    """`subtask 1 at step 14, 2 at 40, done at 63`: when the learned subtask went up."""
+    """`subtask 1 at step 14, 2 at 40, done at 63`: when the learned subtask went up (what the
+    reward believed, which the score beside it confirms or not)."""
     if not climbs:
         return "subtask stayed at 0"
     parts = [f"{'done' if subtask >= num_subtasks else subtask} at {'step ' * (i == 0)}{step}"
@@ -98,8 +101,8 @@ class GraphMonitor(Node):
         if self.episode_lines:
             blocks = round(view.finished * 3)
             self.events.append(
-                f"{self.namespaces[index] or '/'}: episode {view.episodes}, score {view.finished:.2f} "
-                f"({blocks} of 3 blocks in order); {climb_text(view.climbs, view.num_subtasks)}"
+                f"{self.namespaces[index] or '/'}: episode {view.episodes}: {blocks} of 3 blocks placed in order "
+                f"(score {view.finished:.2f}); the learned reward's {climb_text(view.climbs, view.num_subtasks)}"
             )
         view.finished = None
 
@@ -120,9 +123,12 @@ class GraphMonitor(Node):
                     f"rejected {values['rejected']}, dropped {values['dropped']}"
                 )
 
+    def total_steps(self) -> int:
+        return sum(view.steps for view in self.views)
+
     def line(self) -> str:
         now = time.monotonic()
-        steps = sum(view.steps for view in self.views)
+        steps = self.total_steps()
         rate = (steps - self.last_steps) / max(now - self.last_time, 1e-9)
         self.last_steps, self.last_time = steps, now
         scores = [score for view in self.views for score in view.scores]
@@ -180,11 +186,15 @@ def watch(monitor: GraphMonitor, interval: float, until=lambda: False, duration:
         for event in monitor.take_events(final):
             print(("\r\x1b[K" if live else "") + event, flush=True)  # above the live line
 
+    printed_steps, printed_at = -1, 0.0
     while rclpy.ok() and not until() and (end is None or time.monotonic() < end):
         rclpy.spin_once(monitor, timeout_sec=0.1)
         print_events()
-        if time.monotonic() >= next_print:
-            print(("\r" if live else "") + monitor.line(), end="" if live else "\n", flush=True)
+        if (now := time.monotonic()) >= next_print:
+            line, steps = monitor.line(), monitor.total_steps()
+            if steps != printed_steps or now - printed_at >= QUIET_LINE_S:
+                print(("\r" if live else "") + line, end="" if live else "\n", flush=True)
+                printed_steps, printed_at = steps, now
             next_print += interval
     print_events(final=True)
     if live:

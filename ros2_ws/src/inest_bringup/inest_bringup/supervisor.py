@@ -13,12 +13,15 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+
+from inest_common.processes import dies_with_parent
 
 CONFIG_ERROR = 2  # the nodes' exit code for a bad parameter or run file
 FINISHES = "agent"  # the node whose exit 0 means the run is over
@@ -141,9 +144,12 @@ class Supervisor:
 
     def start(self, child: Child, restart: bool = False) -> None:
         with open(child.log, "a") as log:  # the child keeps its own copy of the descriptor
+            # SIGTERM when the launcher dies, even by SIGKILL: no node outlives it (the agent saves
+            # its checkpoint on SIGTERM, so a rerun with --resume goes on from there)
             child.process = subprocess.Popen(
-                child.command, stdout=log, stderr=subprocess.STDOUT, env=self.env, start_new_session=True
-            )
+                child.command, stdout=log, stderr=subprocess.STDOUT, env=self.env, start_new_session=True,
+                preexec_fn=dies_with_parent(signal.SIGTERM),
+            )  # fmt: skip
         child.started, child.due = time.monotonic(), None
         verb = "restarted" if restart else "started"
         print(f"inest-launch: {verb} {child.name} (pid {child.process.pid}), log {child.log}", flush=True)

@@ -124,11 +124,16 @@ class RewardNodeUnderTest:
             "waited_for_stage_frame": sum(int(d.get("waited_for_stage_frame", 0)) for d in self.diagnostics),
             "stage_wait_p99_ms": max((float(d.get("stage_wait_p99_ms", 0)) for d in self.diagnostics), default=0.0),
             "dropped_unpaired": sum(int(d.get("dropped_unpaired", 0)) for d in self.diagnostics),
+            "scene_frames_dropped": sum(int(d.get("dropped_stage_unpaired", 0)) for d in self.diagnostics),
         }
 
     def counted_drops(self) -> int:
-        """Frames the node said it dropped or refused as stale since the last reset."""
-        return sum(int(d.get("dropped", 0)) + int(d.get("rejected_stale", 0)) for d in self.diagnostics)
+        """Camera frames the node said it dropped or refused as stale since the last reset (not the
+        scene camera's own, `dropped_stage_unpaired`)."""
+        return sum(
+            int(d.get("dropped", 0)) - int(d.get("dropped_stage_unpaired", 0)) + int(d.get("rejected_stale", 0))
+            for d in self.diagnostics
+        )
 
     def figures(self, phase: str, sent: dict[int, float], every_frame: bool = True) -> dict[str, float | int]:
         """Latency of every answered frame (publish -> reward), and what became of the others.

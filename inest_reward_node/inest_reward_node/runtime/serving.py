@@ -19,7 +19,8 @@ frame is never scored with another moment's stage evidence: a frame waits for it
 zero-stamped frame takes the stream's newest one) until the second camera sends a newer stamp.
 Each camera's frames come in stamp order, so its partner is then lost: the frame is dropped,
 counted as `unpaired` and logged, and never holds back the stream's later frames. Second-camera
-frames older than the frame just paired have no partner either and are dropped the same way.
+frames older than the frame just paired have no partner either and are dropped, counted as
+`stage_unpaired` (as are the oldest kept ones when too many wait).
 """
 
 from __future__ import annotations
@@ -208,7 +209,7 @@ class StreamScorer:
         kept[stamp] = StageFrame(fit_square(frame, self.scorer.image_size, self.resize), arrived)
         while len(kept) > 4 * self.max_pending:
             del kept[next(iter(kept))]
-            self.stats.dropped["unpaired"] += 1
+            self.stats.dropped["stage_unpaired"] += 1
 
     def partner(self, stream: int, item: Pending) -> str:
         """Give `item` its stage frame if it needs one and it has come: READY; WAITING while it may
@@ -229,7 +230,7 @@ class StreamScorer:
             self.stats.pair_waits.append(partner.received - item.received)
         for orphan in [stamp for stamp in kept if stamp < item.stamp]:  # their partners are past
             del kept[orphan]
-            self.stats.dropped["unpaired"] += 1
+            self.stats.dropped["stage_unpaired"] += 1
         return READY
 
     @property

@@ -238,10 +238,11 @@ def pretrain(
     config: PretrainConfig, run_dir: str | Path, resume: bool = False, progress_bar: bool = True
 ) -> RewardModel:
     refuse_unfit_clips(config)
+    DemoDataset(config.dataset)  # a missing or unfinished dataset is refused before the run folder is written
+    trainer = Pretrainer(config, run_dir, resume)
     train, valid = load_split(config, "train", progress_bar), load_split(config, "valid", progress_bar)
     if len(train) < 2:
         raise DatasetError(f"{config.dataset} has {len(train)} training demonstrations; pretraining needs at least 2")
-    trainer = Pretrainer(config, run_dir, resume)  # writes the run folder: only once the data is there
     return trainer.train(train, valid, progress_bar)
 
 

@@ -179,7 +179,7 @@ class GraphVecEnv(VecEnv):
                 if i not in results
             )
 
-        broken: dict[int, dict[str, Any]] = {}  # environments whose step never happened: their infos
+        broken: dict[int, dict[str, Any]] = {}  # steps not to learn from (a restarted node): their infos
 
         def resend() -> None:
             for index in range(self.num_envs):
@@ -195,6 +195,15 @@ class GraphVecEnv(VecEnv):
             self.wait_until(collect, silent, resend)
         finally:
             self.updates.join()
+        for index, (_, messages) in results.items():
+            frame = messages.get(REWARD, Reward()).episode_frame
+            if self.learned_reward and index not in broken and frame <= self.episode_frames[index]:
+                self.break_episode(
+                    index,
+                    f"the reward node lost this episode's subtask progress (restarted? its tracker counts "
+                    f"{frame} frames, {self.episode_frames[index]} were scored before)",
+                    broken,
+                )
         observations = np.zeros((self.num_envs, *self.observation_space.shape), dtype=np.float32)
         rewards = np.zeros(self.num_envs, dtype=np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)
@@ -206,16 +215,6 @@ class GraphVecEnv(VecEnv):
                 continue
             new_stamp, messages = results[index]
             reward = messages.get(REWARD, Reward())
-            if self.learned_reward and reward.episode_frame <= self.episode_frames[index]:
-                self.break_episode(
-                    index,
-                    f"the reward node lost this episode's subtask progress (restarted? its tracker counts "
-                    f"{reward.episode_frame} frames, {self.episode_frames[index]} were scored before)",
-                    broken,
-                )
-                observations[index], dones[index] = self.observations[index], True
-                infos.append(broken[index])
-                continue
             self.episode_frames[index] = reward.episode_frame
             status = messages[STATUS]
             observation = np.asarray(status.state, dtype=np.float32)

@@ -234,12 +234,23 @@ def has_checkpoint(run_dir: Path) -> bool:
     return (run_dir / CHECKPOINT_DIR / CHECKPOINT_INFO).is_file()
 
 
-def continuation_flags(run_dir: Path) -> list[str]:
-    """inest-train's flags to carry on the run in `run_dir`, whatever its state: --resume from its
-    checkpoint, --start-over for one stopped before its first, nothing for a new one."""
+def checkpoint_steps(run_dir: Path) -> int:
+    """The step of the run's checkpoint (has_checkpoint must hold)."""
+    return int(read_run_file(run_dir / CHECKPOINT_DIR / CHECKPOINT_INFO, read_json)["steps"])
+
+
+def continuation(run_dir: Path) -> str | None:
+    """How to carry on the run in `run_dir`, whatever its state: "resume" from its checkpoint,
+    "start_over" for one stopped before its first, None for a new one."""
     if has_checkpoint(run_dir):
-        return ["--resume"]
-    return ["--start-over"] if (run_dir / CONFIG_FILE).exists() else []
+        return "resume"
+    return "start_over" if (run_dir / CONFIG_FILE).exists() else None
+
+
+def continuation_flags(run_dir: Path) -> list[str]:
+    """inest-train's flags for `continuation(run_dir)`: --resume, --start-over or none."""
+    how = continuation(run_dir)
+    return [] if how is None else [f"--{how.replace('_', '-')}"]
 
 
 def check_resume(run_dir: Path, resume: bool, start_over: bool) -> None:
@@ -261,9 +272,9 @@ def check_resume(run_dir: Path, resume: bool, start_over: bool) -> None:
             "inest-launch --param agent:start_over:=true) or pick a new folder"
         )
     if start_over and has_checkpoint(run_dir):
-        steps = read_run_file(run_dir / CHECKPOINT_DIR / CHECKPOINT_INFO, read_json).get("steps")
         raise FileExistsError(
-            f"{run_dir} has a checkpoint at step {steps}: resume it, or pick a new folder to start over"
+            f"{run_dir} has a checkpoint at step {checkpoint_steps(run_dir)}: resume it, or pick a new folder "
+            "to start over"
         )
 
 

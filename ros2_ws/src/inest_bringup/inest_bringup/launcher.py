@@ -30,9 +30,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from inest_agent_node.evaluate import EvalResult, format_table
-from inest_agent_node.train import CHECKPOINT_DIR, CHECKPOINT_INFO, EVALUATION_FILE, RESULTS_FILE, has_checkpoint
+from inest_agent_node.train import EVALUATION_FILE, RESULTS_FILE, checkpoint_steps, continuation, has_checkpoint
 from inest_common.rosutil import CHECK_ONLY_ENV
-from inest_reward_node.learning.runs import CONFIG_FILE
 
 from .recording import RecordingError, check_target
 from .supervisor import (
@@ -190,13 +189,12 @@ def resuming_agent(run_dir: Path) -> Callable[[str, list[str]], list[str]]:
 
     def command(name: str, argv: list[str]) -> list[str]:
         agent_dir = run_dir / "agent"
-        if name != "agent" or not (agent_dir / CONFIG_FILE).exists():
+        how = continuation(agent_dir) if name == "agent" else None
+        if how is None:
             return argv
-        argv = without_parameters(argv, ("resume:=true", "start_over:=true"))
-        if has_checkpoint(agent_dir):
-            return [*argv, "-p", "resume:=true"]
-        print(f"inest-launch: the agent stopped before its first checkpoint; its run in {agent_dir} starts over")
-        return [*argv, "-p", "start_over:=true"]
+        if how == "start_over":
+            print(f"inest-launch: the agent stopped before its first checkpoint; its run in {agent_dir} starts over")
+        return [*without_parameters(argv, ("resume:=true", "start_over:=true")), "-p", f"{how}:=true"]
 
     return command
 
@@ -272,7 +270,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"inest-launch: {refusal}; nothing was started", file=sys.stderr)
         return 2
     if args.resume and has_checkpoint(agent_dir := run_dir / "agent"):
-        steps = json.loads((agent_dir / CHECKPOINT_DIR / CHECKPOINT_INFO).read_text())["steps"]
+        steps = checkpoint_steps(agent_dir)
         print(f"inest-launch: the agent resumes {agent_dir} from its checkpoint at step {steps}", flush=True)
     os.environ.update(env)
     import rclpy  # after the environment above: the monitor joins the same graph

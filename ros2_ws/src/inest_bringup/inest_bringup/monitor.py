@@ -22,6 +22,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from inest_common.rosutil import namespaced
 from inest_interfaces.msg import EpisodeStatus, Reward
+from inest_sim_node.scoring import NUM_BLOCKS
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
@@ -99,9 +100,10 @@ class GraphMonitor(Node):
         if view.finished is None:
             return
         if self.episode_lines:
-            blocks = round(view.finished * 3)
+            blocks = round(view.finished * NUM_BLOCKS)
             self.events.append(
-                f"{self.namespaces[index] or '/'}: episode {view.episodes}: {blocks} of 3 blocks placed in order "
+                f"{self.namespaces[index] or '/'}: episode {view.episodes}: {blocks} of {NUM_BLOCKS} blocks placed "
+                "in order "
                 f"(score {view.finished:.2f}); the learned reward's {climb_text(view.climbs, view.num_subtasks)}"
             )
         view.finished = None

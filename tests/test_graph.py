@@ -95,9 +95,9 @@ def test_lockstep_training_over_the_graph_with_two_simulators(graph, tiny_model,
     assert agent.wait(240) == 0, graph.log("agent")
     results = json.loads((tmp_path / "run" / "results.json").read_text())
     assert results["steps"] == 300 and results["config"]["num_envs"] == 2
-    assert results["config"]["reward"] == "topic" and results["config"]["observation"] == "stage"
+    assert results["config"]["reward"] == "topic" and results["config"]["observation"] == "robot"
     assert (tmp_path / "run" / "checkpoint" / "model.zip").exists()
-    # evaluate mode: the saved policy over the same graph, on the evaluation layouts
+    # evaluate mode: the exported policy over the same graph, on the test layouts
     evaluation = graph.start(
         "evaluate", "inest-agent-node", "--ros-args", "-p", "namespaces:=[sim0, sim1]", "-p", "mode:=evaluate",
         "-p", f"model:={tiny_model}",
@@ -105,9 +105,10 @@ def test_lockstep_training_over_the_graph_with_two_simulators(graph, tiny_model,
     )  # fmt: skip
     assert evaluation.wait(120) == 0, graph.log("evaluate")
     table = graph.log("evaluate")
-    assert "checkpoint/model.zip over the graph" in table
+    assert "run (300 steps) over the graph" in table
     evaluation = json.loads((tmp_path / "run" / "evaluation.json").read_text())
-    assert evaluation["final_evaluation"]["episodes"] == 3 and evaluation["policy"].endswith("checkpoint/model.zip")
+    assert evaluation["final_evaluation"]["episodes"] == 3 and evaluation["policy"] == str(tmp_path / "run")
+    assert evaluation["layouts"] == {"name": "test", "first_seed": 30_000_000}
 
 
 def count_steps(domain_env, until_steps: int, timeout: float) -> int:

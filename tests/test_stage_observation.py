@@ -18,7 +18,7 @@ from inest_agent_node.envs import (
 from inest_agent_node.rewards import EnvironmentReward
 from inest_agent_node.train import Trainer
 from inest_reward_node.runtime.intrinsic import IntrinsicConfig
-from inest_sim_node.observation import stage_fields, stage_observation
+from inest_sim_node.observation import ROBOT_FIELDS, observation_fields, stage_fields, stage_observation
 from inest_sim_node.scoring import dense_reward
 from small_training import small_train_config
 
@@ -58,6 +58,19 @@ def test_stage_observation_gives_the_stage_block_in_the_robot_frame():
         stage_observation(state[None], np.array([4]), 3)
 
 
+def test_the_robot_observation_hides_the_score_and_the_in_goal_flags():
+    state = state_with()
+    state[STATE_FIELDS.index("ordered_progress")] = 2 / 3
+    state[STATE_FIELDS.index("in_goal_red")] = 1.0
+    robot = stage_observation(state[None], np.array([1]), 3, sensed_only=True)[0]
+    names = observation_fields("robot", 3)
+    assert len(robot) == len(names) == 17 + 4 + 3 and "ordered_progress" not in names and "in_goal_red" not in names
+    values = dict(zip(names, robot, strict=True))
+    assert values["stage_1"] == 1 and values["block_lateral"] == pytest.approx(-0.5)  # the reward's stage still
+    whole = dict(zip(observation_fields("stage", 3), stage_observation(state[None], np.array([1]), 3)[0], strict=True))
+    assert all(values[name] == whole[name] for name in ROBOT_FIELDS)  # the sensed entries are the state's own
+
+
 def test_approach_oracle_shares_each_blocks_third_so_finishing_pays_most():
     plain, approach = SweepToTopEnv(), SweepToTopEnv(reward="approach")
     for env in (plain, approach):
@@ -79,12 +92,12 @@ def test_stage_wrapper_reports_the_stage_of_each_terminal_observation_and_starts
     venv = RewardVecEnv(make_vec_env(2, EnvConfig(max_steps=5), seed=0), EnvironmentReward(2))
     env = StageObservationVecEnv(venv, 3)  # the environment's reward: its stage is the true progress
     observations = env.reset()
-    assert observations.shape == (2, 28) and env.observation_space.contains(observations[0])
+    assert observations.shape == (2, 24) and env.observation_space.contains(observations[0])
     for _ in range(5):
         observations, _, dones, infos = env.step(np.zeros((2, 3), np.float32))
     assert dones.all()
     for info, observation in zip(infos, observations, strict=True):
-        assert info["terminal_observation"].shape == (28,) and observation[21] == 1.0
+        assert info["terminal_observation"].shape == (24,) and observation[17] == 1.0  # stage_0
 
 
 def test_a_stage_claimed_for_a_block_not_in_the_goal_is_a_false_completion():
@@ -103,6 +116,26 @@ def test_a_stage_claimed_for_a_block_not_in_the_goal_is_a_false_completion():
     assert diagnostics.summary() == {}  # cleared
 
 
+def test_a_claim_its_block_earns_within_a_few_steps_is_early_a_later_or_never_one_unplaced():
+    diagnostics = RewardDiagnostics(num_envs=3, num_subtasks=3)
+    # env 0 claims red two steps early; env 1 claims it and never places it; env 2 places it six steps late
+    trajectory = [((0, 1), (0, 1), (0, 1)), ((0, 1), (0, 1), (0, 1)), ((1, 1), (0, 1), (0, 1))]
+    trajectory += [((1, 1), (0, 1), (0, 1))] * 3 + [((1, 1), (0, 1), (1, 1))]
+    for step, row in enumerate(trajectory):
+        infos = [
+            {TRUE_PROGRESS: progress, LEARNED_STAGE: stage, "shaping_reward": 1.0, "subtask_bonus": 2.0,
+             "intrinsic_reward": -1.0}
+            for progress, stage in row
+        ]  # fmt: skip
+        diagnostics.update(infos, np.full(3, step == len(trajectory) - 1), np.zeros(3))
+    summary = diagnostics.summary()
+    assert summary["unearned_completion_rate"] == 1.0  # all three were paid before their block was in
+    assert summary["early_claim_rate"] == pytest.approx(1 / 3) and summary["unplaced_claim_rate"] == pytest.approx(
+        2 / 3
+    )
+    assert (summary["shaping_share"], summary["bonus_share"], summary["intrinsic_share"]) == (0.25, 0.5, 0.25)
+
+
 def test_learned_reward_training_sees_the_trackers_stage_and_records_diagnostics(tiny_tcc_run, tmp_path):
     _, reward_run = tiny_tcc_run
     config = small_train_config(
@@ -115,17 +148,17 @@ def test_learned_reward_training_sees_the_trackers_stage_and_records_diagnostics
         checkpoint_every=400,
     )
     trainer = Trainer(config, tmp_path / "run", progress_bar=False)
-    assert trainer.model.observation_space.shape == (28,)
+    assert trainer.model.observation_space.shape == (24,)
     trainer.train()
     scorer = trainer.reward_env.reward
     stored = trainer.model.replay_buffer.observations[: trainer.model.replay_buffer.size(), 0]
-    assert stored.shape[1] == 28 and np.all(stored[:, 21:25].sum(axis=1) == 1)  # always exactly one stage
+    assert stored.shape[1] == 24 and np.all(stored[:, 17:21].sum(axis=1) == 1)  # always exactly one stage
     assert scorer.num_envs == 2
     results = json.loads((tmp_path / "run" / "results.json").read_text())
     diagnostics = results["reward_diagnostics"]
     assert [entry["steps"] for entry in diagnostics] == [200, 400]
     assert {"shaping_per_step", "bonus_per_step", "intrinsic_per_step", "false_completion_rate"} <= set(diagnostics[0])
-    assert results["config"]["observation"] == "stage"
+    assert results["config"]["observation"] == "robot"
     with pytest.raises(ValueError, match="reward_batch_steps to 1"):
         TrainConfig(reward="inest", model="m", reward_batch_steps=4)
 
@@ -134,7 +167,7 @@ def test_evaluation_env_follows_the_training_observation(tiny_tcc_run):
     _, reward_run = tiny_tcc_run
     config = TrainConfig(reward="topic", model=str(reward_run / "model"), intrinsic=IntrinsicConfig(mode="none"))
     env = build_env(config, num_envs=2, evaluation=True)
-    assert env.observation_space.shape == (28,)
+    assert env.observation_space.shape == (24,)
     with pytest.raises(ValueError, match="needs `model`"):
         build_env(TrainConfig(reward="topic", intrinsic=IntrinsicConfig(mode="none")), 2, evaluation=True)
 

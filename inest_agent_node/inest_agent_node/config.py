@@ -114,9 +114,10 @@ class TrainConfig:
     # how the learned reward shapes and tracks subtasks (runtime.config.RewardConfig: shaping, tracker,
     # stage_source "privileged" for the true-stage diagnostic, intrinsic_cap)
     learned_reward: RewardConfig = field(default_factory=RewardConfig)
-    # stage: the state plus the reward's stage one-hot and the stage block's offsets (Markov in the
-    # staged reward; observation.py); state: the bare 21-entry state (the ablation)
-    observation: str = "stage"
+    # robot: what a robot senses (no score, no in-goal flags) plus the reward's stage one-hot and the
+    # stage block's offsets (Markov in the staged reward; observation.py); stage: the same on the
+    # whole simulator state, score included (the earlier default); state: the bare 21-entry state
+    observation: str = "robot"
     oracle: str = "approach"  # the simulator's reward (reward env): progress | approach (+ reach and hold)
     learner: str = "sbx_sac"  # learners.LEARNERS: sac | sbx_sac | crossq | sbx_crossq | sbx_droq
     num_envs: int = 4
@@ -157,7 +158,7 @@ class TrainConfig:
             raise ValueError(
                 "stage_source 'privileged' (a diagnostic) knows the true stage of the 1- and 3-subtask schemes only"
             )
-        if self.observation == "stage" and self.reward_batch_steps != 1:
+        if self.observation != "state" and self.reward_batch_steps != 1:
             raise ValueError(
                 "the stage observation needs every step's stage before the next action: "
                 f"set reward_batch_steps to 1 (got {self.reward_batch_steps}) or observation to 'state'"

@@ -17,6 +17,9 @@ from inest_sim_node.observation import claimed_blocks
 from .envs import BONUS, INTRINSIC, LEARNED_STAGE, SHAPING, TRUE_PROGRESS
 
 PARTS = {"shaping": SHAPING, "bonus": BONUS, "intrinsic": INTRINSIC, "env_reward": "env_reward"}  # info keys
+SHARED_PARTS = ("shaping", "bonus", "intrinsic")  # what the learned reward is the sum of
+# a claim this many steps or fewer ahead of its block's placement counts as early, not unplaced
+EARLY_CLAIM_STEPS = 3
 
 
 @dataclass
@@ -27,6 +30,31 @@ class EpisodeTrace:
     max_claimed: int = 0
     false_completion: bool = False  # the stage claimed a block that was not placed in order
     unearned_completion: bool = False  # ... and that had not been placed at any step before
+    steps: int = 0
+    # blocks claimed ahead of their placement -> the step of the first such claim (-1: judged unplaced)
+    pending: dict[int, int] = field(default_factory=dict)
+    early_claim: bool = False  # a claim its block then earned within EARLY_CLAIM_STEPS
+    unplaced_claim: bool = False  # a claim its block did not earn within EARLY_CLAIM_STEPS
+
+    def claim(self, claimed: int, progress: int) -> None:
+        """One step's claimed blocks against the blocks placed in order."""
+        self.steps += 1
+        self.max_progress = max(self.max_progress, progress)
+        self.false_completion |= claimed > progress
+        self.unearned_completion |= claimed > self.max_progress
+        for blocks in range(self.max_progress + 1, claimed + 1):
+            self.pending.setdefault(blocks, self.steps)
+        for blocks, since in list(self.pending.items()):
+            if blocks <= self.max_progress:
+                self.early_claim |= since >= 0
+                del self.pending[blocks]
+            elif since >= 0 and self.steps - since >= EARLY_CLAIM_STEPS:
+                self.unplaced_claim = True
+                self.pending[blocks] = -1
+
+    def end(self) -> None:
+        """The episode ended: a claim still waiting for its block was never earned."""
+        self.unplaced_claim |= bool(self.pending)
 
 
 @dataclass
@@ -37,8 +65,11 @@ class RewardDiagnostics:
     and its maximum, a false completion (at some step the learned stage claimed more blocks
     than were placed in order then; this includes a tracker still catching up with a block
     pushed back out), an unearned completion (the stage claimed more blocks than had been
-    placed at any step so far: paid for something that never happened), a miss (the true
-    progress reached more blocks than the stage ever claimed)."""
+    placed at any step so far: paid for something that never happened), split into an early
+    claim (the block was then placed within EARLY_CLAIM_STEPS: the tracker was a frame or two
+    ahead) and an unplaced claim (it was not: the reward paid for a block not placed), a miss (the
+    true progress reached more blocks than the stage ever claimed). Each part's share of the
+    learned reward: its per-step mean's size over the sum of all three's."""
 
     num_envs: int
     num_subtasks: int
@@ -59,18 +90,18 @@ class RewardDiagnostics:
                     self.add(name, [info[key]])
             trace = self.traces[index]
             progress = int(info[TRUE_PROGRESS])
-            trace.max_progress = max(trace.max_progress, progress)
             learned = LEARNED_STAGE in info
-            if learned:
-                claimed = int(claimed_blocks(info[LEARNED_STAGE], self.num_subtasks))
-                trace.max_claimed = max(trace.max_claimed, claimed)
-                trace.false_completion |= claimed > progress
-                trace.unearned_completion |= claimed > trace.max_progress
+            claimed = int(claimed_blocks(info[LEARNED_STAGE], self.num_subtasks)) if learned else progress
+            trace.max_claimed = max(trace.max_claimed, claimed)
+            trace.claim(claimed, progress)
             if dones[index]:
+                trace.end()
                 episode: dict[str, Any] = {"final_progress": progress, "max_progress": trace.max_progress}
                 if learned:
                     episode["false_completion"] = trace.false_completion
                     episode["unearned_completion"] = trace.unearned_completion
+                    episode["early_claim"] = trace.early_claim
+                    episode["unplaced_claim"] = trace.unplaced_claim
                     episode["missed"] = trace.max_progress > trace.max_claimed
                 self.episodes.append(episode)
                 self.traces[index] = EpisodeTrace()
@@ -82,8 +113,12 @@ class RewardDiagnostics:
     def summary(self) -> dict[str, float]:
         """Means since the last summary (then cleared): per-step parts, per-episode rates."""
         result = {f"{name}_per_step": self.sums[name] / self.counts[name] for name in self.sums}
+        sizes = {name: abs(result.get(f"{name}_per_step", 0.0)) for name in SHARED_PARTS}
+        if sum(sizes.values()) > 0:
+            result.update({f"{name}_share": size / sum(sizes.values()) for name, size in sizes.items()})
         if self.episodes:
-            for key in ("final_progress", "max_progress", "false_completion", "unearned_completion", "missed"):
+            keys = ("final_progress", "max_progress", "false_completion", "unearned_completion")
+            for key in (*keys, "early_claim", "unplaced_claim", "missed"):
                 values = [episode[key] for episode in self.episodes if key in episode]
                 if values:
                     name = f"{key}_rate" if isinstance(values[0], bool) else f"{key}_mean"

@@ -194,34 +194,39 @@ class RewardVecEnv(VecEnvWrapper):
 
 class StageObservationVecEnv(VecEnvWrapper):
     """Appends the reward's stage (one-hot of `infos[LEARNED_STAGE]`) and the stage block's offsets
-    in the robot frame to every state observation (observation.stage_observation).
+    in the robot frame to every state observation (observation.stage_observation), on what a
+    robot senses (`sensed_only`) or on the whole simulator state.
 
     A stage is known only once the step's reward is: the wrapped env must fill LEARNED_STAGE in
     every step's infos (a RewardVecEnv scoring each step as it happens, or the graph's rewards;
     for the environment's reward it is the simulator's true progress). Episodes start in stage 0.
     """
 
-    def __init__(self, venv: VecEnv, num_subtasks: int) -> None:
-        super().__init__(venv, observation_space=stage_observation_space(venv.observation_space, num_subtasks))
-        self.num_subtasks, self.stage_key = num_subtasks, LEARNED_STAGE
+    def __init__(self, venv: VecEnv, num_subtasks: int, sensed_only: bool = True) -> None:
+        space = stage_observation_space(venv.observation_space, num_subtasks, sensed_only)
+        super().__init__(venv, observation_space=space)
+        self.num_subtasks, self.sensed_only = num_subtasks, sensed_only
+
+    def observe(self, states: np.ndarray, stages: np.ndarray) -> np.ndarray:
+        return stage_observation(states, stages, self.num_subtasks, self.sensed_only)
 
     def reset(self) -> np.ndarray:
         observations = self.venv.reset()
-        return stage_observation(observations, np.zeros(len(observations), int), self.num_subtasks)
+        return self.observe(observations, np.zeros(len(observations), int))
 
     def step_wait(self):
         observations, rewards, dones, infos = self.venv.step_wait()
-        if self.stage_key not in infos[0]:
+        if LEARNED_STAGE not in infos[0]:
             raise RuntimeError(
-                f"the stage observation needs infos[{self.stage_key!r}] after every step "
+                f"the stage observation needs infos[{LEARNED_STAGE!r}] after every step "
                 "(a learned reward scored several steps at once has none yet: use reward_batch_steps 1)"
             )
-        stages = np.array([info[self.stage_key] for info in infos], dtype=int)
+        stages = np.array([info[LEARNED_STAGE] for info in infos], dtype=int)
         for index in np.flatnonzero(dones):
             terminal = infos[index]["terminal_observation"]
-            infos[index]["terminal_observation"] = stage_observation(terminal, stages[index], self.num_subtasks)[0]
+            infos[index]["terminal_observation"] = self.observe(terminal, stages[index])[0]
             stages[index] = 0  # the observation returned is the next episode's first
-        return stage_observation(observations, stages, self.num_subtasks), rewards, dones, infos
+        return self.observe(observations, stages), rewards, dones, infos
 
 
 class UpdateThread:
@@ -295,10 +300,14 @@ def build_env(
     env_config = EnvConfig(view=config.view, reward=config.oracle)
     venv = wrap_simulators(make_vec_env(num_envs, env_config, seed, frames, reward.stage_camera))
     batch_steps = 1 if evaluation else config.reward_batch_steps
-    return with_observation(RewardVecEnv(venv, reward, batch_steps=batch_steps), config)
+    return with_observation(
+        RewardVecEnv(venv, reward, batch_steps=batch_steps), config.observation, config.stage_subtasks
+    )
 
 
-def with_observation(venv: VecEnv, config: TrainConfig) -> VecEnv:
-    if config.observation == "state":
+def with_observation(venv: VecEnv, observation: str, stage_subtasks: int) -> VecEnv:
+    """The policy's observation (observation.STATE_OBSERVATIONS) on simulators' state vectors,
+    with the stage of a reward of `stage_subtasks` subtasks."""
+    if observation == "state":
         return venv
-    return StageObservationVecEnv(venv, config.stage_subtasks)
+    return StageObservationVecEnv(venv, stage_subtasks, sensed_only=observation == "robot")

@@ -1,5 +1,12 @@
 """Policy evaluation as in thesis 5.1.3: N episodes on fresh layouts, mean score, success rate and
-the share of episodes ending with 0, 1, 2 or 3 blocks placed in order; learning-curve plot."""
+the share of episodes ending with 0, 1, 2 or 3 blocks placed in order; learning-curve plot.
+
+Layouts are named sets (`LAYOUT_SETS`), each episode's layout drawn from its own seed, never one
+training or the demonstrations draw: settings are chosen on `validation` scores (the learning
+curves, `final_validation`), results are reported on `test` (`final_evaluation`), which no
+choice has seen. `legacy` are the layouts every run before the split was evaluated on (10,000,000
++ the run's seed + i), on which its settings were also chosen.
+"""
 
 from __future__ import annotations
 
@@ -14,7 +21,36 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from inest_sim_node import EnvConfig, SweepToTopEnv
 
-EVAL_SEED_OFFSET = 10_000_000  # evaluation layouts never overlap training or demonstration seeds
+LAYOUT_SETS = {"legacy": 10_000_000, "validation": 20_000_000, "test": 30_000_000}  # the first layout seed
+
+
+@dataclass(frozen=True)
+class Layouts:
+    """Episode i of an evaluation plays the layout of seed `first + i`."""
+
+    name: str
+    first: int
+    size: int | None = None  # how many layouts the set has (None: as many as asked for)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "first_seed": self.first}
+
+    def check(self, episodes: int) -> None:
+        if self.size is not None and episodes > self.size:
+            raise ValueError(f"{episodes} episodes asked of the {self.size} layouts {self.name}")
+
+
+def layouts(spec: str, run_seed: int = 0) -> Layouts:
+    """`validation`, `test`, `legacy` (of the run's seed) or a seed range `FIRST:STOP`."""
+    if spec in LAYOUT_SETS:
+        return Layouts(spec, LAYOUT_SETS[spec] + (run_seed if spec == "legacy" else 0))
+    first, colon, stop = spec.partition(":")
+    if colon and first.isdigit() and stop.isdigit() and int(stop) > int(first):
+        return Layouts(spec, int(first), int(stop) - int(first))
+    raise ValueError(f"layouts must be one of {sorted(LAYOUT_SETS)} or a seed range FIRST:STOP, got {spec!r}")
+
+
+VALIDATION, TEST = layouts("validation"), layouts("test")
 
 Policy = Callable[[np.ndarray, SweepToTopEnv], np.ndarray]
 
@@ -44,12 +80,15 @@ class EvalResult:
         )
 
 
-def evaluate(policy: Policy, episodes: int = 150, env_config: EnvConfig | None = None, seed: int = 0) -> EvalResult:
+def evaluate(
+    policy: Policy, episodes: int = 150, env_config: EnvConfig | None = None, on: Layouts = TEST
+) -> EvalResult:
     """Run `policy(observation, env)` for `episodes` full episodes; the score is the one at the end."""
+    on.check(episodes)
     env = SweepToTopEnv(config=env_config or EnvConfig())
     scores = []
     for episode in range(episodes):
-        observation, info = env.reset(seed=EVAL_SEED_OFFSET + seed + episode)
+        observation, info = env.reset(seed=on.first + episode)
         done = False
         while not done:
             observation, _, terminated, truncated, info = env.step(policy(observation, env))
@@ -60,15 +99,16 @@ def evaluate(policy: Policy, episodes: int = 150, env_config: EnvConfig | None =
 
 
 def evaluate_vec_env(
-    env: VecEnv, predict: Callable[[np.ndarray], np.ndarray], episodes: int, seed: int = 0
+    env: VecEnv, predict: Callable[[np.ndarray], np.ndarray], episodes: int, on: Layouts
 ) -> EvalResult:
-    """`episodes` episodes of `predict(observations) -> actions` on the evaluation layouts, N at a time
+    """`episodes` episodes of `predict(observations) -> actions` on the layouts `on`, N at a time
     (environment i of a batch on the next seed + i), through whatever observation path `env` has:
     in process or over the graph. Episodes are truncated at a fixed length, so a batch ends together."""
+    on.check(episodes)
     scores: list[float] = []
     while len(scores) < episodes:
         count = min(env.num_envs, episodes - len(scores))
-        env.seed(EVAL_SEED_OFFSET + seed + len(scores))
+        env.seed(on.first + len(scores))
         observations = env.reset()
         finished: dict[int, float] = {}
         while len(finished) < count:

@@ -10,8 +10,9 @@ Parameters: every training setting of config.py (`reward`, `total_steps`, `sac.b
 - `step_timeout`: seconds of silence before a topic is reported (the node keeps waiting)
 - `overlap_updates` (a training setting, on by default here): run each SAC update while the
   simulators take the next step (the action then comes from a policy one update older)
-- `episodes`, `policy`: evaluate mode, N episodes of a saved policy (default: `out`'s checkpoint),
-  written to `out`/evaluation.json
+- `episodes`, `policy`, `layouts`: evaluate mode, N episodes of an exported policy (a policy
+  folder, or a run folder with one; default: `out`'s) on the named layouts (evaluate.layouts:
+  test by default), observed as the policy was trained; written to `out`/evaluation.json
 Periodic evaluations during training run on an in-process copy of the simulator.
 """
 
@@ -21,7 +22,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from inest_common.files import read_run_file, write_atomic
+from inest_common.files import write_atomic
 from inest_common.rosutil import declare_dataclass, run_node
 from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 from inest_reward_node.runtime.model import ModelError
@@ -29,10 +30,10 @@ from rclpy.node import Node
 
 from .config import TrainConfig
 from .envs import with_observation
-from .evaluate import evaluate_vec_env, format_table
+from .evaluate import evaluate_vec_env, format_table, layouts
 from .graph_env import GraphVecEnv
-from .learners import learner_class
-from .train import CHECKPOINT_DIR, EVALUATION_FILE, RESULTS_FILE, Trainer, check_resume, deterministic
+from .policy_export import load_policy
+from .train import CHECKPOINT_DIR, EVALUATION_FILE, RESULTS_FILE, Trainer, check_resume
 
 MODES = ("train", "evaluate")
 
@@ -46,7 +47,8 @@ class AgentNodeConfig:
     start_over: bool = False
     step_timeout: float = 5.0
     episodes: int = 150
-    policy: str = ""  # evaluate: a saved SAC model.zip; empty: `out`/checkpoint/model.zip
+    policy: str = ""  # evaluate: an exported policy folder (policy_export.py), or a run folder; empty: `out`
+    layouts: str = "test"  # evaluate: the layouts played (evaluate.layouts)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -57,6 +59,7 @@ class AgentNodeConfig:
             raise ValueError(f"step_timeout must be positive (seconds), got {self.step_timeout}")
         if self.episodes < 1:
             raise ValueError(f"episodes must be at least 1, got {self.episodes}")
+        layouts(self.layouts)  # a bad name is refused at start-up
 
 
 # the rewards a graph brings: the reward node's, scored there with the reward runtime and received
@@ -89,24 +92,11 @@ class AgentNode(Node):
     def run(self) -> None:
         settings, config = self.settings, self.train_config
         graph = GraphVecEnv(self, list(settings.namespaces), config.reward == "topic", settings.step_timeout)
-        env = with_observation(graph, config)
         try:
             if settings.mode == "evaluate":
-                policy = settings.policy or str(Path(settings.out) / CHECKPOINT_DIR / "model.zip")
-                model = read_run_file(Path(policy), lambda path: learner_class(config.learner).load(path, env=env))
-                result = evaluate_vec_env(env, deterministic(model), settings.episodes, config.seed)
-                label = f"{Path(policy).parent.name}/{Path(policy).name} over the graph"
-                print(format_table({label: result}), flush=True)
-                evaluation = {
-                    "policy": policy,
-                    "label": label,
-                    "final_evaluation": result.to_dict(),
-                    "config": config.to_dict(),
-                }
-                out = Path(settings.out) / EVALUATION_FILE
-                write_atomic(out, lambda path: path.write_text(json.dumps(evaluation, indent=2) + "\n"))
-                self.get_logger().info(f"wrote {out}")
+                self.evaluate(graph)
                 return
+            env = with_observation(graph, config.observation, config.stage_subtasks)
             trainer = Trainer(config, settings.out, settings.resume, env=env, start_over=settings.start_over)
             try:
                 result = trainer.train()
@@ -126,7 +116,27 @@ class AgentNode(Node):
             print(format_table({f"{config.reward} ({trainer.model.num_timesteps} steps)": result}), flush=True)
             self.get_logger().info(f"wrote {Path(settings.out) / RESULTS_FILE}")
         finally:
-            env.close()
+            graph.close()
+
+    def evaluate(self, graph: GraphVecEnv) -> None:
+        """An exported policy over the graph, observing what it was trained to observe."""
+        settings = self.settings
+        source = settings.policy or settings.out
+        policy = load_policy(source)
+        env = with_observation(graph, policy.info["observation"], policy.info["stage_subtasks"])
+        result = evaluate_vec_env(env, policy.predict, settings.episodes, layouts(settings.layouts))
+        label = f"{Path(source).name} ({policy.info['steps']} steps) over the graph"
+        print(format_table({label: result}), flush=True)
+        evaluation = {
+            "policy": source,
+            "label": label,
+            "layouts": layouts(settings.layouts).to_dict(),
+            "final_evaluation": result.to_dict(),
+            "config": self.train_config.to_dict(),
+        }
+        out = Path(settings.out) / EVALUATION_FILE
+        write_atomic(out, lambda path: path.write_text(json.dumps(evaluation, indent=2) + "\n"))
+        self.get_logger().info(f"wrote {out}")
 
 
 def main() -> int:

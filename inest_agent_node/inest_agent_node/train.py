@@ -38,7 +38,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, unwrap_vec_w
 from .callbacks import training_callbacks
 from .config import REWARDS, SPEED_ONLY_SETTINGS, TrainConfig
 from .envs import ConcurrentUpdatesVecEnv, RewardVecEnv, build_env
-from .evaluate import EvalResult, evaluate_vec_env, format_table, plot_learning_curve
+from .evaluate import TEST, VALIDATION, EvalResult, Layouts, evaluate_vec_env, format_table, plot_learning_curve
 from .learners import (
     LEARNERS,
     OverlappedUpdatesMixin,
@@ -47,6 +47,7 @@ from .learners import (
     configure_jax_threads,
     learner_kwargs,
 )
+from .policy_export import EXPORTABLE, POLICY_DIR, export_policy, exported
 from .replay_store import load_replay_buffer, save_replay_buffer
 
 CHECKPOINT_DIR = "checkpoint"
@@ -148,9 +149,12 @@ class Trainer:
         if overlap_updates:
             waiting_hook_owner(self.env).while_waiting = self.model.run_pending_updates
 
-    def evaluate(self, episodes: int) -> EvalResult:
-        """The deterministic policy on the evaluation layouts, through the training observation path."""
-        return evaluate_vec_env(self.eval_env, deterministic(self.model), episodes, self.config.seed)
+    def evaluate(self, episodes: int, on: Layouts = VALIDATION) -> EvalResult:
+        """The deterministic policy on the layouts `on` (the periodic evaluations': validation),
+        through the training observation path; as exported, when it can be (policy_export.exported)."""
+        if self.config.learner in EXPORTABLE:
+            return evaluate_vec_env(self.eval_env, exported(self.model, self.config).predict, episodes, on)
+        return evaluate_vec_env(self.eval_env, deterministic(self.model), episodes, on)
 
     def check_run_dir(self, overwrite: bool, start_over: bool) -> None:
         settings = self.config.to_dict()
@@ -169,6 +173,8 @@ class Trainer:
         write_atomic(checkpoint / "model.zip", lambda path: self.model.save(path))
         write_atomic(checkpoint / HISTORY_FILE, lambda path: path.write_text(json.dumps(self.history)))
         write_atomic(checkpoint / DIAGNOSTICS_FILE, lambda path: path.write_text(json.dumps(self.diagnostics)))
+        if self.config.learner in EXPORTABLE:
+            export_policy(self.model, self.config, self.run_dir / POLICY_DIR)  # inest-evaluate's, at every checkpoint
         if self.reward_env is not None:
             state = self.reward_env.exploration_state()
 
@@ -198,9 +204,16 @@ class Trainer:
     def finish(self) -> EvalResult:
         config = self.config
         evaluation_start = time.monotonic()
-        result = self.evaluate(config.final_eval_episodes)
+        result = self.evaluate(config.final_eval_episodes, on=TEST)
+        validation = self.evaluate(config.final_eval_episodes, on=VALIDATION)
         results: dict[str, Any] = {
-            "final_evaluation": result.to_dict(),
+            "final_evaluation": result.to_dict(),  # on the test layouts, which no choice of setting saw
+            "final_validation": validation.to_dict(),  # where settings are chosen
+            "layouts": {
+                "final_evaluation": TEST.to_dict(),
+                "final_validation": VALIDATION.to_dict(),
+                "learning_curve": VALIDATION.to_dict(),
+            },
             "steps": int(self.model.num_timesteps),
             "wall_clock_s": {
                 "training": round(self.trained_seconds, 2),
@@ -208,6 +221,7 @@ class Trainer:
             },
             "learning_curve": self.history,
             "reward_diagnostics": self.diagnostics,
+            "reward_shares": reward_shares(self.diagnostics),
             "config": config.to_dict(),
         }
         if self.reward_env is not None and self.reward_env.visited:
@@ -227,6 +241,18 @@ class Trainer:
             reference = reference_curve(self.run_dir.parent)
         plot_learning_curve({f"{config.reward} reward": self.history}, self.run_dir / "learning_curve.png", reference)
         return result
+
+
+def reward_shares(diagnostics: list[dict[str, float]]) -> dict[str, dict[str, float]]:
+    """Each reward part's share of the reward (diagnostics.py), over the whole run (the mean of
+    its evaluation intervals) and over its last interval."""
+    names = sorted({key for entry in diagnostics for key in entry if key.endswith("_share")})
+    if not names:
+        return {}
+    return {
+        "run": {name: float(np.mean([entry.get(name, 0.0) for entry in diagnostics])) for name in names},
+        "last_interval": {name: float(diagnostics[-1].get(name, 0.0)) for name in names},
+    }
 
 
 def has_checkpoint(run_dir: Path) -> bool:

@@ -314,10 +314,11 @@ def load_model(
     folder: str | Path, view: str | None = None, image_size: int | None = None, scheme: int | None = None
 ) -> RewardModel:
     """Load a model folder; any expectation given (view, input size, subtask scheme) must match it.
-    DEFAULT_MODEL is found from any working folder (the checkout's copy)."""
+    A relative folder missing from the working folder is the checkout's (DEFAULT_MODEL and the
+    committed runs' models are found from anywhere)."""
     folder = Path(folder)
-    if str(folder) == DEFAULT_MODEL and not folder.exists() and (CHECKOUT / DEFAULT_MODEL).exists():
-        folder = CHECKOUT / DEFAULT_MODEL
+    if not folder.is_absolute() and not folder.exists() and (CHECKOUT / folder).exists():
+        folder = CHECKOUT / folder
     metadata = read_model_metadata(folder)
     check_expectations(metadata, folder, view, image_size, scheme)
     if metadata.method == "reds" and metadata.reds is None:

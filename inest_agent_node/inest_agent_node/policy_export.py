@@ -1,0 +1,109 @@
+"""A trained policy as a small, self-describing folder: the deterministic actor's weights
+(`actor.safetensors`, a few hundred kB against the 9 MB of the learner's model.zip with its
+critics and optimiser) and what it observes (`policy.json`: the observation, the stage scheme,
+each entry's name, the run's full training config).
+
+Why: a committed policy can be re-evaluated on new layouts, with a new metric or after a bug
+fix in evaluation without retraining, and without the learner's library; the SAC family's
+deterministic action is tanh of the actor's mean, an MLP that numpy runs.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from inest_common.files import RunFileError, read_run_file, read_versioned_json, write_atomic
+from inest_sim_node.observation import observation_fields
+from safetensors.numpy import load_file, save_file
+
+from .config import TrainConfig
+
+POLICY_DIR = "policy"
+ACTOR_FILE = "actor.safetensors"
+POLICY_FILE = "policy.json"
+FORMAT = "inest-policy"
+VERSION = 1
+EXPORTABLE = ("sac", "sbx_sac", "sbx_droq")  # plain MLP actors; CrossQ's batch renormalisation is not exported
+
+
+def actor_layers(model: Any, learner: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(weight (out, in), bias) of each hidden layer and then the mean layer of a SAC-family actor."""
+    if learner == "sac":  # stable-baselines3: actor.latent_pi (Linear, ReLU, ...) then actor.mu
+        linear = [module for module in model.actor.latent_pi if hasattr(module, "weight")] + [model.actor.mu]
+        return [(layer.weight.detach().cpu().numpy(), layer.bias.detach().cpu().numpy()) for layer in linear]
+    if learner in ("sbx_sac", "sbx_droq"):  # SBX: Dense_0..Dense_{n-1} hidden, Dense_n mean, Dense_{n+1} log std
+        params = model.policy.actor_state.params["params"]
+        dense = sorted((name for name in params if name.startswith("Dense_")), key=lambda name: int(name[6:]))
+        return [(np.asarray(params[name]["kernel"]).T, np.asarray(params[name]["bias"])) for name in dense[:-1]]
+    raise ValueError(f"exporting a {learner} policy is not supported; exportable learners: {EXPORTABLE}")
+
+
+@dataclass
+class ExportedPolicy:
+    """The deterministic actor: relu hidden layers, then tanh of the mean (actions in [-1, 1])."""
+
+    layers: list[tuple[np.ndarray, np.ndarray]]
+    info: dict[str, Any]  # policy.json
+
+    @property
+    def config(self) -> TrainConfig:
+        """The training config of the run the policy comes from."""
+        return TrainConfig.from_dict(self.info["train_config"])
+
+    def predict(self, observations: np.ndarray) -> np.ndarray:
+        x = np.asarray(observations, np.float32)
+        if x.ndim != 2 or x.shape[1] != self.layers[0][0].shape[1]:
+            raise ValueError(f"the policy observes {self.layers[0][0].shape[1]} values, got shape {x.shape}")
+        for weight, bias in self.layers[:-1]:
+            x = np.maximum(x @ weight.T + bias, 0.0)
+        weight, bias = self.layers[-1]
+        return np.tanh(x @ weight.T + bias)
+
+
+def exported(model: Any, config: TrainConfig) -> ExportedPolicy:
+    """The learner's policy now, as it is exported: what training's evaluations play, so that a
+    re-evaluation of the exported policy repeats them exactly (JAX's and numpy's float sums
+    differ in the last bits, which the physics turns into other episodes)."""
+    info = {
+        "format": FORMAT,
+        "format_version": VERSION,
+        "steps": int(model.num_timesteps),
+        "observation": config.observation,
+        "stage_subtasks": config.stage_subtasks,
+        "observation_fields": list(observation_fields(config.observation, config.stage_subtasks)),
+        "train_config": config.to_dict(),
+    }
+    layers = [(np.array(w, np.float32), np.array(b, np.float32)) for w, b in actor_layers(model, config.learner)]
+    return ExportedPolicy(layers, info)
+
+
+def export_policy(model: Any, config: TrainConfig, folder: str | Path) -> Path:
+    """Write the policy of a SAC-family learner to `folder` (actor first, then policy.json)."""
+    folder = Path(folder)
+    policy = exported(model, config)
+    tensors = {}
+    for index, (weight, bias) in enumerate(policy.layers):
+        tensors[f"layer{index}.weight"] = np.ascontiguousarray(weight)
+        tensors[f"layer{index}.bias"] = np.ascontiguousarray(bias)
+    write_atomic(folder / ACTOR_FILE, lambda path: save_file(tensors, str(path)))
+    write_atomic(folder / POLICY_FILE, lambda path: path.write_text(json.dumps(policy.info, indent=2) + "\n"))
+    return folder
+
+
+def load_policy(folder: str | Path) -> ExportedPolicy:
+    """A policy folder (export_policy's), or a run folder holding one in `policy/`."""
+    folder = Path(folder)
+    if not (folder / POLICY_FILE).exists() and (folder / POLICY_DIR / POLICY_FILE).exists():
+        folder = folder / POLICY_DIR
+    info = read_versioned_json(folder / POLICY_FILE, FORMAT, VERSION, "exported policy", RunFileError)
+    tensors = read_run_file(folder / ACTOR_FILE, lambda path: load_file(str(path)))
+    count = len(tensors) // 2
+    try:
+        layers = [(tensors[f"layer{i}.weight"], tensors[f"layer{i}.bias"]) for i in range(count)]
+    except KeyError as error:
+        raise RunFileError(f"{folder / ACTOR_FILE} lacks {error.args[0]}") from None
+    return ExportedPolicy(layers, info)

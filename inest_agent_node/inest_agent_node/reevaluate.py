@@ -1,0 +1,88 @@
+"""`inest-evaluate`: re-evaluate committed policies on any layouts without retraining.
+
+Each RUN is a training run folder with its exported policy (`policy/`, written by inest-train at
+every checkpoint) or a policy folder itself. The policy plays through the observation path and
+reward of its own training config (the learned reward's stage reaches its observation), with the
+reward model that config names. One table row per run; each run's evaluation is written to
+RUN/evaluations/<layouts>-<episodes>.json (or --out, for one run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from inest_common.files import write_atomic
+from inest_reward_node.runtime.model import ModelError
+
+from .envs import build_env
+from .evaluate import EvalResult, evaluate_vec_env, format_table, layouts
+from .policy_export import POLICY_DIR, load_policy
+
+EVALUATIONS_DIR = "evaluations"
+MAX_ENVS = 10  # episodes played side by side (one encoder pass for all their frames)
+
+
+def reevaluate(run: Path, spec: str, episodes: int) -> tuple[EvalResult, dict]:
+    """The run's exported policy on the layouts `spec` (evaluate.layouts, of the run's seed)."""
+    policy = load_policy(run)
+    config = policy.config
+    on = layouts(spec, config.seed)
+    on.check(episodes)
+    env = build_env(config, num_envs=min(MAX_ENVS, episodes), evaluation=True)
+    try:
+        if env.observation_space.shape != (policy.layers[0][0].shape[1],):
+            raise ValueError(
+                f"{run}: the policy observes {policy.layers[0][0].shape[1]} values, its config's "
+                f"observation path gives {env.observation_space.shape[0]}"
+            )
+        start = time.monotonic()
+        result = evaluate_vec_env(env, policy.predict, episodes, on)
+    finally:
+        env.close()
+    record = {
+        "run": str(run),
+        "policy_steps": policy.info["steps"],
+        "layouts": on.to_dict(),
+        "evaluation": result.to_dict(),
+        "wall_clock_s": round(time.monotonic() - start, 2),
+    }
+    return result, record
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("runs", nargs="+", type=Path, help="run folders (with policy/) or policy folders")
+    parser.add_argument(
+        "--layouts", default="test", help="test (default), validation, legacy (the run's earlier ones) or FIRST:STOP"
+    )
+    parser.add_argument("--episodes", type=int, default=150)
+    parser.add_argument("--out", type=Path, help="the evaluation's JSON file (one run only)")
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        parser.error("--episodes must be at least 1")
+    if args.out is not None and len(args.runs) > 1:
+        parser.error("--out takes one run; several write RUN/evaluations/ each")
+    rows = {}
+    try:
+        layouts(args.layouts)  # a bad name fails before any model loads
+        for run in args.runs:
+            result, record = reevaluate(run, args.layouts, args.episodes)
+            name = f"{args.layouts.replace(':', '-')}-{args.episodes}.json"
+            home = run.parent if run.name == POLICY_DIR else run
+            out = args.out or home / EVALUATIONS_DIR / name
+            write_atomic(out, lambda path, record=record: path.write_text(json.dumps(record, indent=2) + "\n"))
+            rows[str(run)] = result
+            print(f"wrote {out}", file=sys.stderr)
+    except (ModelError, ValueError) as error:
+        print(f"inest-evaluate: {error}", file=sys.stderr)
+        return 2
+    print(format_table(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

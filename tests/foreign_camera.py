@@ -112,6 +112,7 @@ def main() -> None:
                 "intrinsic": msg.intrinsic_bonus,
                 "subtask": msg.subtask,
                 "num_subtasks": msg.num_subtasks,
+                "confidence": msg.stage_confidence,
             }
         )
 

@@ -72,6 +72,10 @@ def test_a_foreign_camera_gets_rewards_that_match_the_library_frame_by_frame(gra
     )
     subtasks = [r["subtask"] for r in rewards]
     assert subtasks == [int(e.completed[0]) for e in expected]  # the stage: subtasks done so far
+    # and how sure it is, from the stage evidence the tracker read
+    confidence = [r["confidence"] for r in rewards]
+    np.testing.assert_allclose(confidence, [e.confidence[0] for e in expected], atol=1e-4)
+    assert all(0.0 <= value <= 1.0 for value in confidence)
     # the default tracker reopens a subtask whose frames stop looking done, one step at a time
     assert max(subtasks) >= 1 and all(b - a in (-1, 0, 1) for a, b in itertools.pairwise(subtasks))
     # the reset service restarted the tracker

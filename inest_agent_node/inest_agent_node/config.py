@@ -221,6 +221,12 @@ class TrainConfig:
         return cls.from_dict(merge_settings(data, overrides or {}))
 
 
+def nested_defaults() -> dict[str, Any]:
+    """Today's defaults of the nested settings: what a saved run's config lacks of a sub-setting
+    added since it was written is taken to be that (a resumed run, a continued grid cell)."""
+    return {"learned_reward": RewardConfig().to_dict(), "sac": asdict(SacConfig())}
+
+
 # inest-train flags an experiment grid sets for every cell itself (experiments.py); `model` has its own key
 GRID_FLAGS = ("--config", "--out", "--seed", "--threads", "--total-steps", "--resume", "--model")
 METHOD_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")  # a method is a folder name

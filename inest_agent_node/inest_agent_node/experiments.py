@@ -50,9 +50,9 @@ import yaml
 from inest_common.files import checkout_relative, read_json, read_run_file, write_atomic
 from inest_common.processes import dies_with_parent
 from inest_common.progress import track
-from inest_reward_node.learning.runs import CONFIG_FILE
+from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings
 
-from .config import SPEED_ONLY_SETTINGS, GridConfig, ReferenceResult
+from .config import SPEED_ONLY_SETTINGS, GridConfig, ReferenceResult, nested_defaults
 from .grid_quality import QUALITY_DIR, quality_table
 from .summary import CURVES_FILE, SUMMARY_FILE, plot_curves, read_run, summarise, write_summary
 from .train import CHECKPOINT_DIR, DIAGNOSTICS_FILE, HISTORY_FILE, RESULTS_FILE, continuation_flags, parse_args
@@ -147,7 +147,8 @@ def record_grid(grid: GridConfig, cells: list[Cell], out: Path) -> None:
     for cell in cells:
         before = recorded.get(cell.name)
         if before is not None and (cell.run_dir / CONFIG_FILE).exists():
-            earlier, settings = checkout_relative(before["config"], root), checkout_relative(cell.settings, root)
+            earlier = merge_settings(nested_defaults(), checkout_relative(before["config"], root))
+            settings = checkout_relative(cell.settings, root)
             if differing := sorted(
                 key
                 for key in (earlier.keys() | settings.keys()) - SPEED_ONLY_SETTINGS

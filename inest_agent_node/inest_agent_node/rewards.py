@@ -52,7 +52,8 @@ class EnvironmentReward:
             self.stages[env] = 0 if ends[row] else stages[row]
         nothing = np.zeros(len(envs))
         subtask = np.minimum(stages, self.num_subtasks - 1)
-        return RewardParts(rewards, rewards, nothing, nothing, subtask, stages, switched, np.zeros((len(envs), 0)))
+        embeddings, told = np.zeros((len(envs), 0)), np.ones(len(envs))  # no frames; the stage is told
+        return RewardParts(rewards, rewards, nothing, nothing, subtask, stages, switched, embeddings, told)
 
     def exploration_state(self) -> dict[str, np.ndarray]:
         return {}

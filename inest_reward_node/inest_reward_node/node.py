@@ -14,7 +14,8 @@ the stamp policy is serving.py's.
 
 Parameters: the RewardNodeConfig fields, `intrinsic.*` (IntrinsicConfig) and `reward.*`
 (runtime.config.RewardConfig: shaping, tracker, stage_source, stage_evidence, hold_steps,
-stage_confidence, confirm_window, confirm_steps, instant_confidence, intrinsic_cap;
+stage_confidence, confirm_window, confirm_steps, instant_confidence, intrinsic_cap, stage_filter,
+filter_advance, filter_regress, filter_temperature;
 `reward.intrinsic_cap:=.inf` is no cap). `reward.stage_source:=privileged`
 is refused: the node sees images only, not the simulator's progress.
 """
@@ -207,6 +208,7 @@ class RewardNode(Node):
             msg.subtask, msg.num_subtasks = frame.subtask, self.streams.scorer.num_subtasks
             msg.subtask_completed = frame.completed_subtask
             msg.episode_frame = frame.episode_frame
+            msg.stage_confidence = frame.stage_confidence
             self.reward_pubs[frame.stream].publish(msg)
             # the plain-number copies are for plots and recorders: published only while one listens,
             # since two more messages per frame cost the training graph (the agent reads `reward`)

@@ -16,6 +16,7 @@ from .trackers import TRACKERS
 SHAPINGS = ("thesis", "segment")
 STAGE_SOURCES = ("tracker", "privileged")
 STAGE_EVIDENCE = ("auto", "pixels", "embedding")
+STAGE_FILTERS = ("none", "forward")
 
 
 @dataclass(frozen=True)
@@ -59,6 +60,10 @@ class RewardConfig:
       reward targets on held-out and selection demonstrations (docs/reward-signal.md).
     intrinsic_cap: the weighted novelty bonus (after the post-switch boost) is clipped to at most
       this; None (or inf) for no clip.
+    stage_filter: "none" (each frame's stage evidence alone) or "forward": the confirmed tracker
+      reads a causal forward filter over the stages instead (stage_filter.py), whose belief moves
+      up one stage with probability `filter_advance` per frame, back with `filter_regress`, and
+      weighs each frame's stage probabilities raised to `filter_temperature`.
     """
 
     shaping: str = "segment"
@@ -71,6 +76,10 @@ class RewardConfig:
     confirm_steps: int = 0
     instant_confidence: float = 0.9
     intrinsic_cap: float | None = None
+    stage_filter: str = "none"
+    filter_advance: float = 0.05
+    filter_regress: float = 0.005
+    filter_temperature: float = 0.5
 
     def __post_init__(self) -> None:
         for name, allowed in (
@@ -78,6 +87,7 @@ class RewardConfig:
             ("tracker", tuple(TRACKERS)),  # read at each check: a tracker registered later counts
             ("stage_source", STAGE_SOURCES),
             ("stage_evidence", STAGE_EVIDENCE),
+            ("stage_filter", STAGE_FILTERS),
         ):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"unknown reward {name} {getattr(self, name)!r}; expected one of {allowed}")
@@ -94,6 +104,13 @@ class RewardConfig:
                 f"instant_confidence must be in [stage_confidence, 1] = [{self.stage_confidence}, 1] (1: off), "
                 f"got {self.instant_confidence}"
             )
+        if not (self.filter_advance > 0 and self.filter_regress >= 0 and self.filter_advance + self.filter_regress < 1):
+            raise ValueError(
+                "need 0 < filter_advance, 0 <= filter_regress and filter_advance + filter_regress < 1, "
+                f"got {self.filter_advance} and {self.filter_regress}"
+            )
+        if not 0 < self.filter_temperature <= 1:
+            raise ValueError(f"filter_temperature must be in (0, 1], got {self.filter_temperature}")
         if self.intrinsic_cap is not None and not self.intrinsic_cap > 0:  # also rejects NaN
             raise ValueError(f"intrinsic_cap must be positive (or None for no cap), got {self.intrinsic_cap}")
 

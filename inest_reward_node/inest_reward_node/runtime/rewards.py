@@ -22,6 +22,8 @@ from .intrinsic import IntrinsicConfig, NoveltyMemory
 from .methods import REWARD_METHODS, Batch, default_variant, goal_distances, inest_distance_unit
 from .model import ModelError, RewardModel
 from .shaping import segment_closeness
+from .stage_classifier import at_least as at_least_of
+from .stage_filter import StageFilter, exactly
 from .trackers import TRACKERS, Evidence, StageTracker, ToldStage
 
 THESIS_REWARD = RewardConfig(shaping="thesis", tracker="threshold")  # the reward as the thesis has it
@@ -39,6 +41,9 @@ class RewardParts:
     completed: np.ndarray  # (N,) subtasks completed after this frame: the stage the policy should see (may drop)
     switched: np.ndarray  # (N,) bool, this frame completed a subtask (an upward switch only)
     embeddings: np.ndarray  # (N, D) the frames' embeddings, for coverage analysis
+    # (N,) how sure the stage is: P(stage == completed) from the stage evidence the tracker read
+    # (filtered, with a stage filter); NaN for a reward that reads none, 1 where the stage is told
+    confidence: np.ndarray
 
     def select(self, rows: slice | np.ndarray) -> RewardParts:
         return RewardParts(*(getattr(self, field.name)[rows] for field in fields(self)))
@@ -162,12 +167,25 @@ class RewardScorer:
                 f"the stage classifier predicts {stage_model.num_stages} stages, "
                 f"not the {self.num_subtasks + 1} of {scheme} subtasks"
             )
+        if config.stage_filter != "none" and self.evidence is None:
+            raise ValueError(
+                f"stage_filter {config.stage_filter!r} filters stage evidence; the {config.tracker} tracker reads none"
+            )
         self.trackers: list[StageTracker] = [self.new_tracker() for _ in range(num_envs)]
+        self.filters = [self.new_filter() for _ in range(num_envs)]
         self.steps_since_switch = np.full(num_envs, -1)
         self.memories: list[NoveltyMemory] = []
 
     def new_tracker(self) -> StageTracker:
         return self.tracker_class.from_settings(self.config, self.goals.thresholds, self.hold_steps)
+
+    def new_filter(self) -> StageFilter | None:
+        config = self.config
+        if config.stage_filter == "none":
+            return None
+        return StageFilter(
+            self.num_subtasks + 1, config.filter_advance, config.filter_regress, config.filter_temperature
+        )
 
     @property
     def num_envs(self) -> int:
@@ -188,6 +206,8 @@ class RewardScorer:
             env_indices = range(self.num_envs)
         for index in [env_indices] if isinstance(env_indices, int | np.integer) else env_indices:
             self.trackers[index].reset()
+            if self.filters[index] is not None:
+                self.filters[index].reset()
             self.steps_since_switch[index] = -1
 
     def score(
@@ -249,20 +269,26 @@ class RewardScorer:
         told = self.told_stages(embeddings, known_stages)
         before, subtask, completed, since_switch = (np.zeros(count, int) for _ in range(4))
         was_done, done, switched = (np.zeros(count, bool) for _ in range(3))
+        confidence = np.full(count, np.nan if told is None else 1.0)
         for row, env in enumerate(envs):
-            tracker = self.trackers[env]
+            tracker, stage_filter = self.trackers[env], self.filters[env]
             before[row], was_done[row] = tracker.current, tracker.done
             since_switch[row] = self.steps_since_switch[env]
+            evidence = None if at_least is None else at_least[row]
+            if stage_filter is not None:
+                evidence = at_least_of(stage_filter.update(exactly(evidence))[None])[0]
             change = tracker.step(
                 Evidence(
                     per_subtask[row],
                     None if segments is None else segments[row],
-                    None if at_least is None else at_least[row],
+                    evidence,
                     None if told is None else told[row],
                 )
             )
             switched[row] = change > 0
             subtask[row], completed[row], done[row] = tracker.current, tracker.completed, tracker.done
+            if evidence is not None:
+                confidence[row] = exactly(evidence)[tracker.completed]
             if switched[row]:
                 self.steps_since_switch[env] = 0
             elif self.steps_since_switch[env] >= 0:
@@ -274,7 +300,7 @@ class RewardScorer:
         # novelty is judged within the subtask the frame was taken in
         intrinsic = self.intrinsic_bonus(embeddings, states, before, since_switch, rounds)
         total = distance + bonus + intrinsic
-        return RewardParts(total, distance, bonus, intrinsic, subtask, completed, switched, embeddings)
+        return RewardParts(total, distance, bonus, intrinsic, subtask, completed, switched, embeddings, confidence)
 
     def segments(self, embeddings: np.ndarray) -> np.ndarray | None:
         """(N, subtasks) segment closeness of each frame, when the method or the tracker reads it."""

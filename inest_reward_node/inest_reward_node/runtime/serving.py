@@ -53,6 +53,7 @@ class ScoredFrame:
     frame_id: str = ""  # the image's frame, handed back for the reward's header
     repeated: bool = False  # the cached reward of an already scored stamp
     episode_frame: int = 0  # frames the stream's tracker has scored since its episode began (1 for the first)
+    stage_confidence: float = float("nan")  # RewardParts.confidence
 
 
 @dataclass
@@ -346,6 +347,7 @@ class StreamScorer:
                 item.received,
                 item.frame_id,
                 episode_frame=self.episode_frames[stream],
+                stage_confidence=float(parts.confidence[index]),
             )
             self.last[stream] = scored
             results.append(scored)

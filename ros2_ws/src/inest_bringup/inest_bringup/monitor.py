@@ -12,6 +12,7 @@ comes at least every QUIET_LINE_S. `--plot` writes a reward-trace PNG on exit (C
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from collections import deque
@@ -37,6 +38,7 @@ class StreamView:
     scores: deque = field(default_factory=lambda: deque(maxlen=20))
     reward: float = float("nan")
     subtask: str = "-"
+    confidence: float = float("nan")  # Reward.stage_confidence of the latest frame
     num_subtasks: int = 0
     trace: deque = field(default_factory=lambda: deque(maxlen=TRACE_STEPS))  # (reward, subtask)
     climbs: list[tuple[int, int]] = field(default_factory=list)  # (step, subtask) each time a new high was reached
@@ -52,6 +54,11 @@ def climb_text(climbs: list[tuple[int, int]], num_subtasks: int) -> str:
     parts = [f"{'done' if subtask >= num_subtasks else subtask} at {'step ' * (i == 0)}{step}"
              for i, (step, subtask) in enumerate(climbs)]  # fmt: skip
     return "subtask " + ", ".join(parts)
+
+
+def confidence_text(confidence: float) -> str:
+    """` (sure 0.93)`: the stage's confidence, when the reward reads stage evidence."""
+    return "" if math.isnan(confidence) else f" (sure {confidence:.2f})"
 
 
 class GraphMonitor(Node):
@@ -82,6 +89,7 @@ class GraphMonitor(Node):
             view.highest = msg.subtask
         done = " done" if msg.subtask >= msg.num_subtasks else ""  # Reward.subtask == num_subtasks: all done
         view.reward, view.subtask = msg.total, f"{msg.subtask}/{msg.num_subtasks}{done}"
+        view.confidence = msg.stage_confidence
         view.num_subtasks = msg.num_subtasks
         view.trace.append((msg.total, msg.subtask))
 
@@ -135,7 +143,7 @@ class GraphMonitor(Node):
         self.last_steps, self.last_time = steps, now
         scores = [score for view in self.views for score in view.scores]
         streams = "  ".join(
-            f"{namespace or '/'}: r {view.reward:+.3f} subtask {view.subtask}"
+            f"{namespace or '/'}: r {view.reward:+.3f} subtask {view.subtask}{confidence_text(view.confidence)}"
             for namespace, view in zip(self.namespaces, self.views, strict=True)
         )
         mean_score = f"{sum(scores) / len(scores):.2f}" if scores else "-"

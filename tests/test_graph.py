@@ -6,6 +6,7 @@ from __future__ import annotations
 import itertools
 import json
 import re
+import shutil
 import subprocess
 import sys
 import time
@@ -14,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
-from inest_interfaces.msg import Action, EpisodeStatus, State
+from diagnostic_msgs.msg import DiagnosticArray
+from inest_interfaces.msg import Action, EpisodeStatus, Reward, State
 from inest_interfaces.srv import ResetEpisode
 from inest_reward_node.learning.data import load_demos
 from inest_reward_node.runtime.intrinsic import IntrinsicConfig
@@ -22,6 +24,8 @@ from inest_reward_node.runtime.model import load_model
 from inest_reward_node.runtime.rewards import RewardScorer, replay
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from rosgraph import BIN, fresh_domain
 from rosgraph_msgs.msg import Clock
 
@@ -153,6 +157,72 @@ def test_the_agent_waits_for_a_restarted_reward_node_resets_the_episode_it_lost_
     # the new reward node's tracker knows nothing of the subtasks done in this episode: the episode
     # is cut short and reset, and said so, rather than learned from with a forgotten stage
     assert "sim0: the reward node lost this episode's subtask progress (restarted? its tracker counts 1 frames" in log
+
+
+def refitted_copy(model: Path, out: Path) -> Path:
+    """The model with every completion threshold lowered: another model, the same encoder."""
+    shutil.copytree(model, out)
+    metadata = json.loads((out / "model.json").read_text())
+    for goals in metadata["subtasks"].values():
+        goals["thresholds"] = [value - 0.5 for value in goals["thresholds"]]
+    (out / "model.json").write_text(json.dumps(metadata))
+    return out
+
+
+def set_parameter(node, name: str, value: object) -> tuple[bool, str]:
+    """Set a parameter of the reward node from `node`: (accepted, the node's reason)."""
+    client = AsyncParameterClient(node, "inest_reward_node")
+    assert client.wait_for_services(timeout_sec=30)
+    future = client.set_parameters([Parameter(name, value=value)])
+    rclpy.spin_until_future_complete(node, future, timeout_sec=60)
+    result = future.result().results[0]
+    return result.successful, result.reason
+
+
+def test_a_refitted_model_is_loaded_live_and_the_agent_trains_on(graph, tiny_model, tmp_path):
+    refitted = refitted_copy(tiny_model, tmp_path / "refitted")
+    graph.start("sim0", *sim_node_args("sim0"))
+    graph.start("reward", *reward_node_args(tiny_model, "-p", "streams:=[sim0]"))
+    agent = graph.start(
+        "agent", "inest-agent-node", "--ros-args", "-p", "namespaces:=[sim0]", "-p", f"out:={tmp_path / 'run'}",
+        "-p", f"model:={tiny_model}", "-p", "total_steps:=300", *TINY_AGENT,
+    )  # fmt: skip
+    rclpy.init(domain_id=int(graph.env["ROS_DOMAIN_ID"]))
+    try:
+        node = rclpy.create_node("refitter")
+        rewards, diagnostics = [], {}
+        node.create_subscription(Reward, "sim0/reward", rewards.append, 500)
+
+        def on_diagnostics(msg: DiagnosticArray) -> None:
+            for status in msg.status:
+                diagnostics.update({value.key: value.value for value in status.values})
+
+        node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+        deadline = time.monotonic() + 120
+        while len(rewards) < 120 and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.1)
+        assert len(rewards) >= 120, graph.log("reward")
+        accepted, reason = set_parameter(node, "model", str(tmp_path / "missing"))  # refused: the old one goes on
+        assert not accepted and "missing" in reason
+        accepted, reason = set_parameter(node, "threads", 2)
+        assert not accepted and "threads: read at start-up" in reason
+        assert set_parameter(node, "model", str(refitted)) == (True, "")
+        switched = len(rewards)
+        while (
+            len(rewards) < switched + 50 or diagnostics.get("model_generation") != "1"
+        ) and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.1)
+    finally:
+        rclpy.shutdown()
+    generations = [reward.model_generation for reward in rewards]
+    assert generations[:120] == [0] * 120 and generations[-1] == 1  # every reward names its model
+    assert generations == sorted(generations)  # once the new one scores, the old one never does again
+    assert diagnostics["model"] == str(refitted)
+    assert agent.wait(240) == 0, graph.log("agent")  # the agent trained on across the switch
+    assert json.loads((tmp_path / "run" / "results.json").read_text())["steps"] == 300
+    log = graph.log("reward")
+    assert f"model generation 1: {refitted} scores from the next frame on" in log and "novelty memories kept" in log
+    assert f"kept model {tiny_model}: {tmp_path / 'missing'} refused" in log
 
 
 def test_the_launcher_runs_the_whole_graph_and_writes_the_reward_trace(tiny_model, tmp_path):

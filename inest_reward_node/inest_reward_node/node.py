@@ -8,6 +8,12 @@ the first camera's by stamp); publishes `<stream>/reward`
 `<stream>/reward/subtask` (std_msgs/Int32) for plotting tools; serves `<stream>/reset_reward`
 (std_srvs/Trigger: new episode, tracker reset, exploration memories kept); publishes /diagnostics
 every second.
+Setting the `model` parameter while the node runs loads that model (a refitted one) without a
+restart: frames already received are scored by the old one, each stream carries on its episode
+at its stage, the novelty memories are kept if the encoder weights are the same, and every
+reward says which model scored it (Reward.model_generation; the log and /diagnostics name it).
+A model that cannot be loaded, or reads other cameras, is refused with the reason, and the node
+goes on with the one it has. Every other parameter is read at start-up; changing one later is refused.
 Frames that arrive together are scored in one encoder forward pass. Malformed frames are refused
 from their header fields alone, in constant time, so a flood of them cannot delay valid ones;
 the stamp policy is serving.py's.
@@ -32,8 +38,10 @@ import torch
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from inest_common.rosutil import declare_dataclass, namespaced, new_executor, ns_stamp, run_node, stamp_ns
 from inest_interfaces.msg import Reward
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import Executor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Image
 from std_msgs.msg import Float32, Int32
@@ -42,7 +50,7 @@ from std_srvs.srv import Trigger
 from .runtime.config import RewardConfig
 from .runtime.images import RESIZE_MODES, ImageRejected, decode_image
 from .runtime.intrinsic import IntrinsicConfig
-from .runtime.model import DEFAULT_MODEL, TCC_SCHEMES, ModelError, load_model
+from .runtime.model import DEFAULT_MODEL, TCC_SCHEMES, ModelError, encoder_digest, load_model
 from .runtime.rewards import RewardScorer
 from .runtime.serving import ScoredFrame, StreamScorer, ThrottledLog
 
@@ -112,12 +120,10 @@ class RewardNode(Node):
         if intrinsic.mode == "state":
             raise ValueError("intrinsic.mode 'state' needs state vectors; the reward node only sees images")
         reward = declare_reward_config(self)
-        self.config = config
+        self.config, self.intrinsic, self.reward_config = config, intrinsic, reward
         torch.set_num_threads(config.threads)
-        model = load_model(config.model, scheme=config.subtasks)
-        scorer = RewardScorer(
-            model, config.subtasks, config.variant or None, intrinsic, len(config.streams), config=reward
-        )
+        scorer = self.new_scorer(config.model)
+        self.model, self.encoder = config.model, encoder_digest(config.model)
         self.log = ThrottledLog(config.log_period)
         self.streams = StreamScorer(scorer, config.max_pending, config.backward_stamps, config.resize, self.log)
         qos = QoSProfile(depth=10)
@@ -155,6 +161,45 @@ class RewardNode(Node):
             f"scoring {[namespaced(ns, config.image_topic) for ns in config.streams]} with {config.model} "
             f"({scorer.variant}, {config.subtasks} subtasks, intrinsic {intrinsic.mode}, "
             f"{reward.shaping} shaping, {reward.tracker} tracker{evidence}{stage})"
+        )
+        self.add_on_set_parameters_callback(self.on_set_parameters)
+
+    def new_scorer(self, model: str) -> RewardScorer:
+        config = self.config
+        return RewardScorer(
+            load_model(model, scheme=config.subtasks),
+            config.subtasks,
+            config.variant or None,
+            self.intrinsic,
+            len(config.streams),
+            config=self.reward_config,
+        )
+
+    def on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        """A new `model` is loaded now (a refitted one); any other parameter is read at start-up only."""
+        fixed = sorted(parameter.name for parameter in parameters if parameter.name != "model")
+        if fixed:
+            return SetParametersResult(
+                successful=False, reason=f"{', '.join(fixed)}: read at start-up; restart the node"
+            )
+        for parameter in parameters:
+            try:
+                self.load(str(parameter.value))
+            except (ModelError, ValueError, OSError) as error:
+                self.get_logger().warning(f"kept model {self.model}: {parameter.value} refused: {error}")
+                return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def load(self, model: str) -> None:
+        """Score with `model` from the next frame on, the running episodes carried on."""
+        scorer, encoder = self.new_scorer(model), encoder_digest(model)
+        self.publish(self.streams.flush())  # what arrived under the old model is scored by it
+        self.streams.replace_scorer(scorer, keep_memories=encoder == self.encoder)
+        memories = "kept" if encoder == self.encoder else "cleared (another encoder)"
+        self.model, self.encoder = model, encoder
+        self.get_logger().info(
+            f"model generation {self.streams.model_generation}: {model} scores from the next frame on; "
+            f"episodes carry on at their stage, novelty memories {memories}"
         )
 
     def on_image(self, stream: int, msg: Image, stage: bool = False) -> None:
@@ -209,6 +254,7 @@ class RewardNode(Node):
             msg.subtask_completed = frame.completed_subtask
             msg.episode_frame = frame.episode_frame
             msg.stage_confidence = frame.stage_confidence
+            msg.model_generation = frame.model_generation
             self.reward_pubs[frame.stream].publish(msg)
             # the plain-number copies are for plots and recorders: published only while one listens,
             # since two more messages per frame cost the training graph (the agent reads `reward`)
@@ -233,6 +279,7 @@ class RewardNode(Node):
             problems.append(f"last rejection: {summary['last_rejection']}")
         status.level = DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
         status.message = "; ".join(problems) or "ok"
+        summary |= {"model": self.model, "model_generation": self.streams.model_generation}
         status.values = [
             KeyValue(key=key, value=f"{value:.3f}" if isinstance(value, float) else str(value))
             for key, value in summary.items()

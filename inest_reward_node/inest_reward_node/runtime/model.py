@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from inest_common.files import read_versioned_json, write_atomic
+from inest_common.files import read_versioned_json, sha256_of, write_atomic
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 from torch import nn
@@ -310,15 +310,26 @@ def check_expectations(
         )
 
 
+def model_folder(folder: str | Path) -> Path:
+    """The folder a model path names: a relative one missing from the working folder is the
+    checkout's (DEFAULT_MODEL and the committed runs' models are found from anywhere)."""
+    folder = Path(folder)
+    if not folder.is_absolute() and not folder.exists() and (CHECKOUT / folder).exists():
+        return CHECKOUT / folder
+    return folder
+
+
+def encoder_digest(folder: str | Path) -> str:
+    """sha256 of the model's encoder weights: two models with the same embed frames alike."""
+    return sha256_of(model_folder(folder) / WEIGHTS_FILE)
+
+
 def load_model(
     folder: str | Path, view: str | None = None, image_size: int | None = None, scheme: int | None = None
 ) -> RewardModel:
     """Load a model folder; any expectation given (view, input size, subtask scheme) must match it.
-    A relative folder missing from the working folder is the checkout's (DEFAULT_MODEL and the
-    committed runs' models are found from anywhere)."""
-    folder = Path(folder)
-    if not folder.is_absolute() and not folder.exists() and (CHECKOUT / folder).exists():
-        folder = CHECKOUT / folder
+    A relative folder missing from the working folder is the checkout's (model_folder)."""
+    folder = model_folder(folder)
     metadata = read_model_metadata(folder)
     check_expectations(metadata, folder, view, image_size, scheme)
     if metadata.method == "reds" and metadata.reds is None:

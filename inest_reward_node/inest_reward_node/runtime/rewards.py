@@ -226,6 +226,24 @@ class RewardScorer:
             embeddings, steps.states, steps.envs, steps.rounds, steps.episode_ends, evidence, steps.known_stages
         )
 
+    def continue_episodes(self, earlier: RewardScorer, keep_memories: bool) -> None:
+        """Carry on the running episodes of `earlier`, the reward this one replaces (a refitted
+        model): each stream's stage, its filter's belief and its steps since a switch; the novelty
+        memories only when `keep_memories` (the same encoder: other weights embed elsewhere)."""
+        if (earlier.num_envs, earlier.num_subtasks) != (self.num_envs, self.num_subtasks):
+            raise ValueError(
+                f"the new reward scores {self.num_envs} streams of {self.num_subtasks} subtasks, "
+                f"the running one {earlier.num_envs} of {earlier.num_subtasks}"
+            )
+        for tracker, before in zip(self.trackers, earlier.trackers, strict=True):
+            tracker.completed = before.completed
+        for stage_filter, before in zip(self.filters, earlier.filters, strict=True):
+            if stage_filter is not None and before is not None:
+                stage_filter.belief = before.belief.copy()
+        self.steps_since_switch = earlier.steps_since_switch.copy()
+        if keep_memories:
+            self.memories = earlier.memories
+
     def exploration_state(self) -> dict[str, np.ndarray]:
         """The novelty memories, which a resumed run must not forget."""
         return {f"memory_{i}": memory.contents() for i, memory in enumerate(self.memories)}

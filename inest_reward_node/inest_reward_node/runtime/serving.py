@@ -33,7 +33,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .images import fit_square
-from .rewards import RewardFunction, Steps
+from .rewards import RewardFunction, RewardScorer, Steps
 
 BACKWARD_POLICIES = ("reset", "reject")
 READY, WAITING, LOST = "ready", "waiting", "lost"  # a frame's pairing with its stage camera's frame
@@ -54,6 +54,7 @@ class ScoredFrame:
     repeated: bool = False  # the cached reward of an already scored stamp
     episode_frame: int = 0  # frames the stream's tracker has scored since its episode began (1 for the first)
     stage_confidence: float = float("nan")  # RewardParts.confidence
+    model_generation: int = 0  # which model scored it: 0 the first, +1 per replace_scorer
 
 
 @dataclass
@@ -195,6 +196,22 @@ class StreamScorer:
         self.stats = ServingStats()
         self.totals: Counter[str] = Counter()  # every count since the start, for a reader that missed a report
         self.arrivals = 0  # frames submitted so far, of either camera: what a callback brought
+        self.model_generation = 0
+
+    def replace_scorer(self, scorer: RewardScorer, keep_memories: bool) -> None:
+        """Score from now on with `scorer` (a refitted model), its streams carrying on their
+        episodes (RewardScorer.continue_episodes). It must read the same cameras at the same size:
+        the subscriptions and the frames waiting are made for them. Flush before, so that the
+        frames that arrived under the old model are scored by it."""
+        old = self.scorer
+        if (scorer.camera, scorer.stage_camera, scorer.image_size) != (old.camera, old.stage_camera, old.image_size):
+            raise ValueError(
+                f"the new model reads {scorer.camera} (stage: {scorer.stage_camera}) at {scorer.image_size} px, "
+                f"the node serves {old.camera} (stage: {old.stage_camera}) at {old.image_size} px: restart the node"
+            )
+        scorer.continue_episodes(old, keep_memories)
+        self.scorer = scorer
+        self.model_generation += 1
 
     @property
     def stage_camera(self) -> str | None:
@@ -348,6 +365,7 @@ class StreamScorer:
                 item.frame_id,
                 episode_frame=self.episode_frames[stream],
                 stage_confidence=float(parts.confidence[index]),
+                model_generation=self.model_generation,
             )
             self.last[stream] = scored
             results.append(scored)

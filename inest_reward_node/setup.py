@@ -27,6 +27,7 @@ setup(
             "inest-reward-node = inest_reward_node.node:main",
             "inest-pretrain = inest_reward_node.learning.pretrain:main",
             "inest-reward-quality = inest_reward_node.learning.quality:main",
+            "inest-label-clips = inest_reward_node.learning.labels:main",
         ],
     },
 )

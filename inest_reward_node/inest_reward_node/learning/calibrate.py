@@ -18,7 +18,7 @@ from inest_common.progress import track
 
 from ..runtime.methods import subtask_rewards
 from ..runtime.model import TCC_SCHEMES, RewardModel, SubtaskGoals
-from .clips import Clip, load_clips, random_play, wrong_order_play
+from .clips import Clip, clip_file_labels, load_clips, random_play, wrong_order_play
 from .config import CalibrationConfig, PretrainConfig
 from .data import Demo, load_demos
 from .stage_fitting import fit_stage_classifier, fit_stage_head
@@ -195,4 +195,46 @@ def stage_head_episodes(config: PretrainConfig, demos: list[Demo], plays: list[C
     labelled = load_demos(config.dataset, "train", view, size, min(head.max_demos, len(demos)), progress_bar=False)
     return labelled, random_play(view, size, calibration.random_episodes) + wrong_order_play(
         view, size, calibration.wrong_order_episodes
+    )
+
+
+def supervision(config: PretrainConfig, demonstrations: int) -> dict[str, object]:
+    """What a model's calibration was fitted on, the labelling budget a robot user has to pay
+    to fit the same (model.json `supervision`): the demonstrations and who segmented them into
+    subtasks, every kind of labelled negative episode with its count and its labeller, and the
+    cameras the reward then needs."""
+    calibration = config.calibration
+    negatives: dict[str, dict[str, object]] = {
+        "random_play": {"episodes": calibration.random_episodes, "labelled_by": "simulator"},
+        "wrong_order": {"episodes": calibration.wrong_order_episodes, "labelled_by": "simulator"},
+    }
+    for path in calibration.clips:
+        episodes, labelled_by = clip_file_labels(path)
+        negatives[f"clips:{path}"] = {"episodes": episodes, "labelled_by": labelled_by}
+    head = calibration.stage_head
+    heads = calibration.stage_head_subtasks if head.iterations else ()
+    cameras = [config.view] + ([head.view] if heads and head.view not in (None, config.view) else [])
+    return {
+        "demonstrations": {"episodes": demonstrations, "segmented_by": "dataset (the simulator's subtask ends)"},
+        "negatives": negatives,
+        "labelled_episodes": sum(int(entry["episodes"]) for entry in negatives.values()),
+        "simulator_labelled_episodes": sum(
+            int(entry["episodes"]) for entry in negatives.values() if entry["labelled_by"] == "simulator"
+        ),
+        "stage_heads": {"subtask_schemes": list(heads), "camera": head.view or config.view} if heads else None,
+        "cameras": cameras,
+    }
+
+
+def describe_supervision(record: dict[str, object]) -> str:
+    """model.json `supervision` in one line: `fitted on 800 demonstrations and 10 labelled negative
+    episodes (5 random_play, 5 wrong_order; 10 by the simulator); cameras: ego`."""
+    if not record:
+        return "supervision not recorded (calibrated before it was)"
+    negatives = record["negatives"]
+    kinds = ", ".join(f"{entry['episodes']} {kind}" for kind, entry in negatives.items() if entry["episodes"])
+    return (
+        f"fitted on {record['demonstrations']['episodes']} demonstrations and {record['labelled_episodes']} labelled "
+        f"negative episodes ({kinds or 'none'}; {record['simulator_labelled_episodes']} by the simulator); "
+        f"cameras: {'+'.join(record['cameras'])}"
     )

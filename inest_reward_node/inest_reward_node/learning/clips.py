@@ -98,10 +98,19 @@ def wrong_order_play(
         env.close()
 
 
-def save_clips(path: str | Path, clips: Sequence[Clip], view: str, source: str) -> None:
-    """One compressed .npz: every clip's frames, progress and held flags, the view and a `source`
-    line saying what behaviour they show."""
-    arrays: dict[str, np.ndarray] = {"view": np.array(view), "source": np.array(source)}
+LABELLERS = ("simulator", "file")  # who labelled a clip file's frames: the simulator, or a person's label file
+
+
+def save_clips(path: str | Path, clips: Sequence[Clip], view: str, source: str, labelled_by: str = "simulator") -> None:
+    """One compressed .npz: every clip's frames, progress and held flags, the view, a `source`
+    line saying what behaviour they show and who labelled them (LABELLERS)."""
+    if labelled_by not in LABELLERS:
+        raise ValueError(f"labelled_by must be one of {LABELLERS}, got {labelled_by!r}")
+    arrays: dict[str, np.ndarray] = {
+        "view": np.array(view),
+        "source": np.array(source),
+        "labelled_by": np.array(labelled_by),
+    }
     for index, clip in enumerate(clips):
         arrays[f"frames_{index}"] = clip.frames
         arrays[f"progress_{index}"] = clip.progress
@@ -112,6 +121,17 @@ def save_clips(path: str | Path, clips: Sequence[Clip], view: str, source: str) 
             np.savez_compressed(handle, **arrays)
 
     write_atomic(Path(path), write)  # a killed recording never leaves a truncated clip file
+
+
+def clip_file_labels(path: str | Path) -> tuple[int, str]:
+    """(episodes, who labelled them) of a clip file, without reading its frames; files written
+    before the labeller was recorded came from the simulator."""
+    try:
+        with np.load(path) as data:
+            labelled_by = str(data["labelled_by"]) if "labelled_by" in data.files else "simulator"
+            return sum(1 for key in data.files if key.startswith("frames_")), labelled_by
+    except (OSError, ValueError) as error:
+        raise ClipError(f"{path}: not a clip file of inest-record-clips ({error})") from error
 
 
 def load_clips(path: str | Path, view: str, image_size: int) -> list[Clip]:

@@ -43,7 +43,7 @@ from ..runtime.model import (
     load_model,
     save_model,
 )
-from .calibrate import calibrate
+from .calibrate import calibrate, supervision
 from .clips import load_clips
 from .config import PretrainConfig
 from .data import Demo, load_demos
@@ -60,7 +60,11 @@ def dataset_hash(root: str | Path) -> str:
     return DemoDataset(root).content_hash()
 
 
-def model_metadata(config: PretrainConfig, iterations_done: int, subtasks: dict[int, SubtaskGoals]) -> ModelMetadata:
+def model_metadata(
+    config: PretrainConfig, iterations_done: int, subtasks: dict[int, SubtaskGoals], demonstrations: int = 0
+) -> ModelMetadata:
+    """A model's record; `demonstrations`: the training demonstrations it was calibrated on (0:
+    not calibrated yet, no supervision record)."""
     return ModelMetadata(
         method=config.method,
         view=config.view,
@@ -72,6 +76,7 @@ def model_metadata(config: PretrainConfig, iterations_done: int, subtasks: dict[
         dataset={"path": str(config.dataset), "sha256": dataset_hash(config.dataset)},
         training={"iterations": iterations_done, "config": config.to_dict()},
         calibration=config.calibration.to_dict(),
+        supervision=supervision(config, demonstrations) if demonstrations else {},
     )
 
 
@@ -188,7 +193,7 @@ class Pretrainer:
         self.network.to("cpu")
         model = RewardModel(self.network, model_metadata(self.config, self.iteration, {}))
         subtasks = calibrate(model, train, self.config, progress_bar)
-        metadata = model_metadata(self.config, self.iteration, subtasks)
+        metadata = model_metadata(self.config, self.iteration, subtasks, len(train))
         save_model(self.run_dir / MODEL_DIR, self.network, metadata)
         return load_model(self.run_dir / MODEL_DIR)  # exactly the model a later load gives
 
@@ -225,9 +230,10 @@ def recalibrate(
     if (out / "model.json").exists():
         raise FileExistsError(f"{out} already holds a model; choose another --out")
     refuse_unfit_clips(config)
-    subtasks = calibrate(trained, load_split(config, "train", progress_bar), config, progress_bar)
+    train = load_split(config, "train", progress_bar)
+    subtasks = calibrate(trained, train, config, progress_bar)
     calibrated = dataclasses.replace(
-        model_metadata(config, int(metadata.training.get("iterations", 0)), subtasks),
+        model_metadata(config, int(metadata.training.get("iterations", 0)), subtasks, len(train)),
         training={**metadata.training, "recalibrated_from": str(source)},
     )
     save_model(out, trained.network, calibrated)

@@ -147,7 +147,9 @@ class SubtaskGoals:
 class ModelMetadata:
     """What a model was trained and calibrated with. The training records stay as written (absent
     in hand-built models): `dataset` (path, sha256), `training` (iterations, the pretraining
-    config), `calibration` (the calibration config)."""
+    config), `calibration` (the calibration config), `supervision` (what the calibration was
+    fitted on: demonstrations, labelled negative episodes and their labeller, cameras;
+    learning/calibrate.py `supervision`; absent in models calibrated before it was recorded)."""
 
     method: str
     view: str
@@ -159,6 +161,7 @@ class ModelMetadata:
     dataset: dict[str, Any] = field(default_factory=dict)
     training: dict[str, Any] = field(default_factory=dict)
     calibration: dict[str, Any] = field(default_factory=dict)
+    supervision: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> ModelMetadata:
@@ -173,6 +176,7 @@ class ModelMetadata:
             dataset=data.get("dataset", {}),
             training=data.get("training", {}),
             calibration=data.get("calibration", {}),
+            supervision=data.get("supervision", {}),
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -187,6 +191,7 @@ class ModelMetadata:
             "training": self.training,
             "shaping": self.shaping.to_dict(),
             "calibration": self.calibration,
+            "supervision": self.supervision,
             "subtasks": {str(scheme): goals.to_dict() for scheme, goals in self.subtasks.items()},
         }
 

@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# The egocentric-only reward at a labelling budget of 0, 10 and 50 labelled negative episodes:
+# the committed egocentric TCC encoder (results/long-horizon/reward-model) recalibrated with
+# 0, 5 + 5 and 30 + 20 random-play + wrong-order episodes (runs/ego-labels/labels<N>/), then the
+# stage filter chosen on the selection set (100 validation demonstrations of runs/demos-select,
+# layout seeds from 5,000,000; negatives at seed offset 2,000,000), then every budget's held-out
+# report (200 validation demonstrations of runs/demos, 40 + 40 negatives) with and without it.
+# Reports go to results/robot-reward/label-budget/{selection,held-out}/<name>/ with <name>.txt.
+#   bash scripts/experiments/ego_label_budget.sh [models|selection|held-out]   # default: all three
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
+cd "$ROOT"
+BIN="${INEST_VENV:-$ROOT/.venv}/bin"
+OUT=results/robot-reward/label-budget
+declare -A NEGATIVES=([0]="0 0" [10]="5 5" [50]="30 20")  # random-play, wrong-order episodes
+declare -A FILTERS=(
+  [none]=""
+  [forward]="--scorer-option stage_filter=forward"
+  [forward-strict]="--scorer-option stage_filter=forward --scorer-option filter_advance=0.02 --scorer-option filter_temperature=0.3"
+)
+EGO=(--schemes 3 --scorer-option stage_evidence=embedding)
+stages=("$@")
+[ ${#stages[@]} -gt 0 ] || stages=(models selection held-out)
+
+report() {  # NAME MODEL DATASET [options...]
+  local name=$1 model=$2 dataset=$3
+  shift 3
+  [ -f "$name/report.json" ] && return
+  rm -rf "$name"
+  "$BIN/inest-reward-quality" "$model" "$dataset" --out "$name" "${EGO[@]}" "$@" >"$name.txt"
+}
+
+for stage in "${stages[@]}"; do
+  case $stage in
+    models)
+      for budget in 0 10 50; do
+        read -r random wrong <<<"${NEGATIVES[$budget]}"
+        [ -f "runs/ego-labels/labels$budget/model/model.json" ] && continue
+        rm -rf "runs/ego-labels/labels$budget"
+        "$BIN/inest-pretrain" runs/demos --out "runs/ego-labels/labels$budget" --recalibrate results/long-horizon/reward-model \
+          --random-episodes "$random" --wrong-order-episodes "$wrong" --stage-head-iterations 0 --threads 1
+      done ;;
+    selection)
+      [ -f runs/demos-select/metadata.json ] \
+        || "$BIN/inest-collect-demos" --out runs/demos-select --episodes 250 --valid-fraction 0.4 --seed 5000000 --workers 2
+      mkdir -p "$OUT/selection"
+      for budget in 0 10 50; do
+        for filter in none forward forward-strict; do
+          # shellcheck disable=SC2086  # a flag list
+          report "$OUT/selection/labels$budget-$filter" "runs/ego-labels/labels$budget/model" runs/demos-select \
+            --negative-seed-offset 2000000 ${FILTERS[$filter]}
+        done
+      done ;;
+    held-out)
+      mkdir -p "$OUT/held-out"
+      for budget in 0 10 50; do
+        for filter in none "${EGO_FILTER:-forward}"; do
+          # shellcheck disable=SC2086
+          report "$OUT/held-out/labels$budget-$filter" "runs/ego-labels/labels$budget/model" runs/demos ${FILTERS[$filter]}
+        done
+      done ;;
+    *) echo "ego_label_budget: unknown stage $stage (models, selection, held-out)" >&2; exit 2 ;;
+  esac
+done

@@ -3,6 +3,7 @@ become a labelled clip file that calibration fits on, and that the model records
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from inest_bringup.recording import McapRecording
 from inest_interfaces.msg import Reward
@@ -22,7 +23,10 @@ def test_sparse_labels_turn_a_policy_s_clips_into_file_labelled_negatives(tmp_pa
     source = tmp_path / "rollouts.npz"
     clips = [Clip(frames(n, n), np.full(n, 3), np.zeros(n, bool)) for n in (10, 12, 8)]  # simulator says 3
     save_clips(source, clips, "ego", "a policy's rollouts")
-    assert labels.main([str(source), "--template", str(tmp_path / "template.csv")]) == 0
+    sheets = tmp_path / "sheets"
+    assert labels.main([str(source), "--template", str(tmp_path / "template.csv"), "--sheets", str(sheets)]) == 0
+    assert sorted(path.name for path in sheets.iterdir()) == ["episode_0.png", "episode_1.png", "episode_2.png"]
+    assert cv2.imread(str(sheets / "episode_1.png")).shape == (2 * 96, 10 * 96, 3)  # 12 frames: two rows of ten
     template = (tmp_path / "template.csv").read_text()
     assert "# episode 1: 12 frames" in template and "2,0,0" in template
     (tmp_path / "labels.csv").write_text("episode,frame,blocks\n# red in at 4, out again at 9\n0,4,1\n0,9,0\n2,3,2\n")

@@ -8,7 +8,8 @@ recording of the robot's camera (`inest-record --images`, with the reward node r
 of stage, `episode,frame,blocks`: from frame `frame` of episode `episode` (both counted from 0)
 on, `blocks` blocks are placed in order (a block pushed back out: a row with fewer). An episode
 starts with 0 blocks; only the episodes the file names are kept. `--template FILE` writes a
-file with one `episode,0,0` row per episode and its frame count, to fill in.
+file with one `episode,0,0` row per episode and its frame count, to fill in, and `--sheets DIR`
+one contact sheet per episode (every frame, numbered) to read the frame numbers from.
 """
 
 from __future__ import annotations
@@ -128,12 +129,34 @@ def write_template(path: Path, episodes: list[np.ndarray]) -> None:
     write_atomic(path, lambda temporary: temporary.write_text("\n".join(lines) + "\n"))
 
 
+SHEET_COLUMNS = 10
+SHEET_TILE = 96  # pixels a frame is drawn at
+
+
+def write_sheets(folder: Path, episodes: list[np.ndarray]) -> None:
+    """episode_<i>.png per episode: its frames in rows of SHEET_COLUMNS, each with its number."""
+    import cv2
+
+    folder.mkdir(parents=True, exist_ok=True)
+    for index, frames in enumerate(episodes):
+        tiles = []
+        for number, frame in enumerate(frames):
+            tile = cv2.resize(np.ascontiguousarray(frame), (SHEET_TILE, SHEET_TILE), interpolation=cv2.INTER_NEAREST)
+            cv2.putText(tile, str(number), (3, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 2)
+            cv2.putText(tile, str(number), (3, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1)
+            tiles.append(tile)
+        tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % SHEET_COLUMNS)
+        rows = [np.hstack(tiles[start : start + SHEET_COLUMNS]) for start in range(0, len(tiles), SHEET_COLUMNS)]
+        cv2.imwrite(str(folder / f"episode_{index}.png"), cv2.cvtColor(np.vstack(rows), cv2.COLOR_RGB2BGR))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("source", type=Path, help="a clip file (.npz) or an MCAP recording (.mcap)")
     parser.add_argument("labels", type=Path, nargs="?", help="the CSV label file")
     parser.add_argument("--out", type=Path, help="the labelled clip file to write")
     parser.add_argument("--template", type=Path, help="write a label file to fill in, one row per episode, and exit")
+    parser.add_argument("--sheets", type=Path, help="with --template: also a numbered contact sheet per episode here")
     recording = parser.add_argument_group("MCAP recordings")
     recording.add_argument("--namespace", default="", help="the stream's namespace, e.g. sim0 or arm1")
     recording.add_argument("--image-topic", default="camera/ego/image_raw", help="the camera, under the namespace")
@@ -151,7 +174,10 @@ def main(argv: list[str] | None = None) -> int:
             episodes, view = clip_file_episodes(args.source)
         if args.template is not None:
             write_template(args.template, episodes)
-            print(f"wrote {args.template}: {len(episodes)} episodes to label")
+            if args.sheets is not None:
+                write_sheets(args.sheets, episodes)
+            sheets = f", their frames numbered in {args.sheets}/" if args.sheets is not None else ""
+            print(f"wrote {args.template}: {len(episodes)} episodes to label{sheets}")
             return 0
         clips = labelled_clips(episodes, read_labels(args.labels))
         save_clips(args.out, clips, view, f"{args.source.name} labelled by {args.labels.name}", labelled_by="file")

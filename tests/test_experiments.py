@@ -127,7 +127,7 @@ def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, caps
     assert f"broken/seed0 failed (exit status 2); see {log}" in printed and "inest-train:" in log.read_text()
     assert (tmp_path / "out" / "oracle" / "seed0" / "results.json").exists()
     report = (tmp_path / "out" / "report.md").read_text()
-    assert "| broken | 0 of 1 | | not finished |" in report and "Not started" in report
+    assert "| broken | 0 of 1 | | | not finished |" in report and "Not started" in report
 
     recorded = json.loads((tmp_path / "out" / "grid.json").read_text())
     del recorded["cells"]["oracle/seed0"]["config"]["checkpoint_minutes"]  # recorded before it existed
@@ -187,7 +187,8 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     assert main(["report", str(tmp_path)]) == 0
     lines = (tmp_path / "report.md").read_text().splitlines()
     row = next(line for line in lines if line.startswith("| oracle |"))
-    assert row.startswith("| oracle | 2 | 300 | 0.850 [0.800, 0.900] | 42.5 % | 0 / 0 / 100 / 0 % |")
+    expected = "| oracle | 2 | 300 | legacy | 0.850 [0.800, 0.900] | 42.5 % | 0 / 0 / 100 / 0 % | | | simulator state |"
+    assert row == expected
     assert "| oracle/seed2 (training) | 100 | 0.100 (last evaluation) | | |" in lines
     assert (tmp_path / "summary.json").exists() and (tmp_path / "learning_curves.png").exists()
     assert not any(line.startswith("Ranking") for line in lines)  # one finished method ranks nothing
@@ -195,7 +196,7 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     grid.write_text(f"methods: {{oracle: {{}}, holdr: {{}}}}\nseeds: [0, 1, 2]\nout: {tmp_path}\n")
     assert main(["report", str(grid)]) == 0
     report = (tmp_path / "report.md").read_text()
-    assert "| oracle | 2 of 3 |" in report and "| holdr | 0 of 3 | | not finished |" in report
+    assert "| oracle | 2 of 3 |" in report and "| holdr | 0 of 3 | | | not finished |" in report
     assert main(["report", str(tmp_path / "nothing")]) == 2
     assert capsys.readouterr().err.count("\n") == 1
     # comparisons as their own tables and figures, with a published result beside the method's own
@@ -212,8 +213,9 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     assert main(["report", str(grid)]) == 0
     report = (tmp_path / "report.md").read_text()
     table = report.split("## Oracle against HOLD-R")[1].split("## Every method")[0]
-    assert "| 0 / 1 / 2 / 3 blocks | thesis: score, success |" in table
-    assert table.index("| holdr | 0 of 3 | | not finished | | | |") < table.index("| oracle | 2 of 3 | 300 | 0.850")
+    assert "| labelled episodes | cameras | thesis: score, success |" in table
+    holdr = table.index("| holdr | 0 of 3 | | | not finished | | | | | |")
+    assert holdr < table.index("| oracle | 2 of 3 | 300 | legacy | 0.850")  # made without layouts: before the split
     assert "| 0.7, 22.45 % |" in table and "(learning_curves_main.png)" in table
     assert (tmp_path / "learning_curves_main.png").exists()
     summary = json.loads((tmp_path / "summary.json").read_text())

@@ -279,8 +279,9 @@ def method_table(methods: list[str], summary: dict[str, Any], grid: GridConfig |
     references = {m: grid.methods[m].reference for m in methods if m in grid.methods} if grid else {}
     label = f" {grid.reference_label}: score, success |" if grid and any(references.values()) else ""
     lines = [
-        f"| method | seeds | steps | mean score [95 % CI over seeds] | success | 0 / 1 / 2 / 3 blocks |{label}",
-        "|---|---|---|---|---|---|" + ("---|" if label else ""),
+        "| method | seeds | steps | layouts | mean score [95 % CI over seeds] | success | 0 / 1 / 2 / 3 blocks "
+        f"| validation score | labelled episodes | cameras |{label}",
+        "|---|---|---|---|---|---|---|---|---|---|" + ("---|" if label else ""),
     ]
     expected = len(grid.seeds) if grid else None
     for method in methods:
@@ -288,15 +289,17 @@ def method_table(methods: list[str], summary: dict[str, Any], grid: GridConfig |
         seeds = f"{entry['seeds'] if entry else 0}" + (f" of {expected}" if expected else "")
         reference = [reference_cell(references.get(method))] if label else []
         if entry is None:
-            lines.append(markdown_row([method, seeds, "", "not finished", "", "", *reference]))
+            lines.append(markdown_row([method, seeds, "", "", "not finished", "", "", "", "", "", *reference]))
             continue
         low, high = entry["mean_score_ci95"]
         blocks = " / ".join(percent(share) for share in entry["blocks_share"])
         score = f"{entry['mean_score']:.3f} [{low:.3f}, {high:.3f}]"
         success = f"{100 * entry['success_rate']:.1f} %"
-        lines.append(
-            markdown_row([method, seeds, format_steps(entry["steps"]), score, success, f"{blocks} %", *reference])
-        )
+        validation = f"{entry['validation_mean_score']:.3f}" if "validation_mean_score" in entry else ""
+        labelled = "" if entry.get("labelled_episodes") is None else str(entry["labelled_episodes"])
+        cells = [method, seeds, format_steps(entry["steps"]), ", ".join(entry.get("layouts", [])), score, success]
+        cells += [f"{blocks} %", validation, labelled, " + ".join(entry.get("cameras") or []), *reference]
+        lines.append(markdown_row(cells))
     return lines
 
 

@@ -1,7 +1,9 @@
 """`inest-summarise ROOT`: one table of the training runs under ROOT/<method>/<run>/, across seeds.
 
 Writes ROOT/summary.json (per run: method, seed, steps, mean_score, success_rate, blocks_share,
-from its 150-episode final evaluation, training_s, its training wall-clock seconds, and
+from its 150-episode final evaluation, the layouts it was on (`test`, or `legacy` for runs before
+the validation/test split), validation_mean_score, the reward's labelled_episodes and cameras
+(its model's supervision record), reward_shares, training_s, its training wall-clock seconds, and
 reward_diagnostics, the first and last window of its reward diagnostics (diagnostics.py); per
 method: the mean over seeds with a 95 % bootstrap interval, `mean_score_ci95`, and a 95 % Student t
 interval, `mean_score_t95`) and ROOT/learning_curves.png (per
@@ -20,12 +22,26 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from inest_reward_node.learning.calibrate import recorded_supervision
+from inest_reward_node.runtime.model import ModelError, model_folder, read_model_metadata
 from scipy import stats
 
 from .train import CHECKPOINT_DIR, HISTORY_FILE, RESULTS_FILE
 
 SUMMARY_FILE = "summary.json"
 CURVES_FILE = "learning_curves.png"
+
+
+def reward_supervision(config: dict[str, Any]) -> dict[str, Any]:
+    """What the run's reward was fitted on: its labelled negative episodes and the cameras it
+    reads (the reward model's supervision record); the oracle reads the simulator."""
+    if config.get("reward", "env") == "env" or not config.get("model"):
+        return {"labelled_episodes": None, "cameras": ["simulator state"]}
+    try:
+        record = recorded_supervision(read_model_metadata(model_folder(config["model"])))
+    except ModelError:
+        return {"labelled_episodes": None, "cameras": None}  # a model no longer where it was
+    return {"labelled_episodes": record["labelled_episodes"], "cameras": record["cameras"]}
 
 
 def read_run(run_dir: Path) -> dict[str, Any] | None:
@@ -39,10 +55,17 @@ def read_run(run_dir: Path) -> dict[str, Any] | None:
             final=True,
             steps=results["steps"],
             episodes=final["episodes"],
+            # runs before the split were evaluated on the layouts their settings were chosen on
+            layouts=results.get("layouts", {}).get("final_evaluation", {}).get("name", "legacy"),
             mean_score=final["mean_score"],
             success_rate=final["success_rate"],
             blocks_share=final["blocks_share"],
+            **reward_supervision(config),
         )
+        if "final_validation" in results:
+            row["validation_mean_score"] = results["final_validation"]["mean_score"]
+        if "reward_shares" in results:
+            row["reward_shares"] = results["reward_shares"]
         if "wall_clock_s" in results:  # runs before the timing was recorded have none
             row["training_s"] = results["wall_clock_s"]["training"]
         if results.get("reward_diagnostics"):  # what the reward paid for, first and last window
@@ -98,7 +121,13 @@ def summarise(root: Path) -> dict[str, Any]:
             "mean_score_t95": t_interval(scores),
             "success_rate": float(np.mean([row["success_rate"] for row in finals])),
             "blocks_share": np.mean([row["blocks_share"] for row in finals], axis=0).tolist(),
+            "layouts": sorted({row["layouts"] for row in finals}),
+            "labelled_episodes": finals[0]["labelled_episodes"],
+            "cameras": finals[0]["cameras"],
         }
+        validation = [row["validation_mean_score"] for row in finals if "validation_mean_score" in row]
+        if len(validation) == len(finals):
+            methods[method]["validation_mean_score"] = float(np.mean(validation))
     return {"runs": rows, "methods": methods}
 
 

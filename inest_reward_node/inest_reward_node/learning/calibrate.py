@@ -12,12 +12,13 @@ it are its parts.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 import numpy as np
 from inest_common.progress import track
 
 from ..runtime.methods import subtask_rewards
-from ..runtime.model import TCC_SCHEMES, RewardModel, SubtaskGoals
+from ..runtime.model import TCC_SCHEMES, ModelMetadata, RewardModel, SubtaskGoals
 from .clips import Clip, clip_file_labels, load_clips, random_play, wrong_order_play
 from .config import CalibrationConfig, PretrainConfig
 from .data import Demo, load_demos
@@ -226,15 +227,38 @@ def supervision(config: PretrainConfig, demonstrations: int) -> dict[str, object
     }
 
 
+def recorded_supervision(metadata: ModelMetadata) -> dict[str, object]:
+    """The model's `supervision`; for a model calibrated before it was recorded, its labelled
+    negative episodes and cameras as its calibration record gives them (`derived`: True; None
+    episodes when a clip file it was fitted on is no longer there to count)."""
+    if metadata.supervision:
+        return metadata.supervision
+    calibration = metadata.calibration
+    episodes: int | None = calibration.get("random_episodes", 0) + calibration.get("wrong_order_episodes", 0)
+    for path in calibration.get("clips", []):
+        episodes = episodes + clip_file_labels(path)[0] if episodes is not None and Path(path).is_file() else None
+    heads = {goals.stage_head.config.view for goals in metadata.subtasks.values() if goals.stage_head is not None}
+    return {
+        "labelled_episodes": episodes,
+        "simulator_labelled_episodes": episodes,
+        "cameras": [metadata.view, *sorted(view for view in heads if view not in (None, metadata.view))],
+        "derived": True,
+    }
+
+
 def describe_supervision(record: dict[str, object]) -> str:
     """model.json `supervision` in one line: `fitted on 800 demonstrations and 10 labelled negative
     episodes (5 random_play, 5 wrong_order; 10 by the simulator); cameras: ego`."""
-    if not record:
-        return "supervision not recorded (calibrated before it was)"
+    cameras = "+".join(record["cameras"])
+    if record.get("derived"):
+        return (
+            f"{record['labelled_episodes']} labelled negative episodes by the simulator (its calibration "
+            f"record; calibrated before supervision was recorded); cameras: {cameras}"
+        )
     negatives = record["negatives"]
     kinds = ", ".join(f"{entry['episodes']} {kind}" for kind, entry in negatives.items() if entry["episodes"])
     return (
         f"fitted on {record['demonstrations']['episodes']} demonstrations and {record['labelled_episodes']} labelled "
         f"negative episodes ({kinds or 'none'}; {record['simulator_labelled_episodes']} by the simulator); "
-        f"cameras: {'+'.join(record['cameras'])}"
+        f"cameras: {cameras}"
     )

@@ -85,7 +85,7 @@ from ..runtime.intrinsic import IntrinsicConfig
 from ..runtime.methods import default_variant
 from ..runtime.model import ModelError, RewardModel, load_model
 from ..runtime.rewards import Replay, RewardScorer, replay
-from .calibrate import describe_supervision, subtask_starts
+from .calibrate import describe_supervision, recorded_supervision, subtask_starts
 from .clips import Clip, ClipError, load_clips, random_play, wrong_order_play
 from .data import Demo, load_demos
 from .task_stages import demo_stages, true_stages
@@ -647,6 +647,7 @@ def evaluate(
     }
     report: dict[str, Any] = {
         "model": model.metadata.to_dict(),
+        "supervision": recorded_supervision(model.metadata),
         "normalisation": __doc__,
         "scorer_options": json_ready(scorer_options),
         "negatives": describe_negatives(negatives, clip_files, negative_seed_offset),
@@ -706,7 +707,7 @@ def _rate_pair(rates: dict[str, float | None]) -> str:
 
 
 def format_summary(report: dict[str, Any]) -> str:
-    lines = [f"model: {describe_supervision(report['model'].get('supervision', {}))}"]
+    lines = [f"model: {describe_supervision(report['supervision'])}"] if "supervision" in report else []
     if report.get("scorer_options"):
         lines.append(f"scorer options: {format_options(report['scorer_options'])}")
     header = "variant  subtasks  spearman(progress, total incl. bonus)  tracker pass  MSE    MAE    bias    cosine-MSE"

@@ -6,8 +6,7 @@ named in the table itself, in the lines just above it, or in a `<!-- figures: PA
 comment above it. Each decimal number and percentage in a table cell (the first column names the
 row and is not read) must equal a number in those files at the precision it is printed with (a
 percentage: the number or a fraction times 100). A table of settings rather than results says
-so with `<!-- not figures: WHY -->`. Reference pages (usage, the ROS graph, file formats, design)
-hold no results.
+so with `<!-- not figures: WHY -->`.
 """
 
 from __future__ import annotations
@@ -21,7 +20,6 @@ import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-REFERENCE_PAGES = {"usage.md", "ros-graph.md", "file-formats.md", "design.md"}
 ABOVE = 8  # lines above a table searched for its sources
 SEPARATOR = re.compile(r"^\|[-:| ]+\|$")
 FIGURE = re.compile(r"(?<![\w.\-/])(-?\d+\.\d+)(\s?%)?|(?<![\w.\-/])(\d+)(\s?%)")
@@ -30,10 +28,7 @@ MARKER = re.compile(r"<!-- figures: (.*?) -->")
 
 
 def pages() -> list[Path]:
-    return [
-        ROOT / "README.md",
-        *(page for page in sorted((ROOT / "docs").glob("*.md")) if page.name not in REFERENCE_PAGES),
-    ]
+    return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 
 
 def tables(page: Path) -> list[tuple[int, str, list[str]]]:

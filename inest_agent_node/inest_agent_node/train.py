@@ -26,7 +26,7 @@ import yaml
 from inest_common.files import RunFileError, read_json, read_run_file, write_atomic
 from inest_reward_node.learning.coverage import measure_coverage, plot_coverage
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings, prepare_run_dir
-from inest_reward_node.runtime.config import SHAPINGS, STAGE_EVIDENCE, STAGE_SOURCES
+from inest_reward_node.runtime.config import SHAPINGS, STAGE_EVIDENCE, STAGE_FILTERS, STAGE_SOURCES
 from inest_reward_node.runtime.intrinsic import INTRINSIC_MODES
 from inest_reward_node.runtime.model import TCC_SCHEMES, ModelError
 from inest_reward_node.runtime.trackers import TRACKERS
@@ -351,6 +351,11 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     parser.add_argument("--model", help="reward model folder (a pretraining run's model/)")
     parser.add_argument("--subtasks", type=int, choices=TCC_SCHEMES)
     parser.add_argument("--intrinsic", choices=INTRINSIC_MODES)
+    parser.add_argument(
+        "--intrinsic-weight",
+        type=float,
+        help="the novelty bonus's weight; twice it for the steps after a subtask switch (thesis: 0.2, 0.4)",
+    )
     parser.add_argument("--view", choices=("ego", "allo"))
     parser.add_argument("--observation", choices=STATE_OBSERVATIONS, help="stage (default) or the bare state")
     parser.add_argument("--learner", choices=tuple(LEARNERS), help="off-policy learner (learners.py)")
@@ -368,6 +373,9 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         "--confirm-steps", type=int, help="frames the confirmed tracker's stage evidence must agree (0: hold_steps)"
     )
     parser.add_argument("--stage-confidence", type=float, help="P(stage >= j) at which the stage evidence agrees")
+    parser.add_argument(
+        "--stage-filter", choices=STAGE_FILTERS, help="forward: the tracker reads a causal filter over the stages"
+    )
     parser.add_argument(
         "--instant-confidence", type=float, help="P(stage >= j) at which one frame confirms a completion (1: off)"
     )
@@ -396,7 +404,7 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     learned = {
         name: getattr(args, name)
         for name in (
-            *("shaping", "tracker", "stage_source", "stage_evidence"),
+            *("shaping", "tracker", "stage_source", "stage_evidence", "stage_filter"),
             *("confirm_steps", "stage_confidence", "instant_confidence"),
         )
         if getattr(args, name) is not None
@@ -409,6 +417,12 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         overrides["intrinsic"] = {"mode": args.intrinsic}
     elif overrides.get("reward", "inest") != "inest":
         overrides["intrinsic"] = {"mode": "none"}  # --reward env|xirl|holdr on an inest config file
+    if args.intrinsic_weight is not None:
+        overrides["intrinsic"] = {
+            **overrides.get("intrinsic", {}),
+            "weight": args.intrinsic_weight,
+            "boosted_weight": 2 * args.intrinsic_weight,
+        }
     if args.config:
         return TrainConfig.from_yaml(args.config, overrides), args
     return TrainConfig.from_dict(merge_settings({}, overrides)), args

@@ -376,6 +376,8 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     parser.add_argument(
         "--stage-filter", choices=STAGE_FILTERS, help="forward: the tracker reads a causal filter over the stages"
     )
+    parser.add_argument("--filter-advance", type=float, help="the stage filter's chance per frame of one stage up")
+    parser.add_argument("--filter-temperature", type=float, help="the power the filter raises each frame's evidence to")
     parser.add_argument(
         "--instant-confidence", type=float, help="P(stage >= j) at which one frame confirms a completion (1: off)"
     )
@@ -405,7 +407,7 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         name: getattr(args, name)
         for name in (
             *("shaping", "tracker", "stage_source", "stage_evidence", "stage_filter"),
-            *("confirm_steps", "stage_confidence", "instant_confidence"),
+            *("confirm_steps", "stage_confidence", "instant_confidence", "filter_advance", "filter_temperature"),
         )
         if getattr(args, name) is not None
     }

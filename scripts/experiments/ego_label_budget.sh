@@ -17,6 +17,9 @@ declare -A FILTERS=(
   [none]=""
   [forward]="--scorer-option stage_filter=forward"
   [forward-strict]="--scorer-option stage_filter=forward --scorer-option filter_advance=0.02 --scorer-option filter_temperature=0.3"
+  # the filter already asks for agreement over frames: one filtered frame confirms
+  [forward-confirm1]="--scorer-option stage_filter=forward --scorer-option confirm_steps=1"
+  [forward-fast-confirm1]="--scorer-option stage_filter=forward --scorer-option filter_advance=0.1 --scorer-option confirm_steps=1"
 )
 EGO=(--schemes 3 --scorer-option stage_evidence=embedding)
 stages=("$@")
@@ -45,7 +48,7 @@ for stage in "${stages[@]}"; do
         || "$BIN/inest-collect-demos" --out runs/demos-select --episodes 250 --valid-fraction 0.4 --seed 5000000 --workers 2
       mkdir -p "$OUT/selection"
       for budget in 0 10 50; do
-        for filter in none forward forward-strict; do
+        for filter in none forward forward-strict forward-confirm1 forward-fast-confirm1; do
           # shellcheck disable=SC2086  # a flag list
           report "$OUT/selection/labels$budget-$filter" "runs/ego-labels/labels$budget/model" runs/demos-select \
             --negative-seed-offset 2000000 ${FILTERS[$filter]}

@@ -205,13 +205,13 @@ def test_command_line_flags_override_the_config_file(tmp_path):
     assert (config.learned_reward.confirm_steps, config.learned_reward.stage_confidence) == (1, 0.8)
     config, _ = parse_args(["--out", "x", "--config", str(path), "--instant-confidence", "0.95"])
     assert config.learned_reward.instant_confidence == 0.95
-    config, _ = parse_args(
-        ["--out", "x", "--config", str(path), "--intrinsic-weight", "3", "--stage-filter", "forward"]
-    )
+    filters = ["--stage-filter", "forward", "--filter-advance", "0.1", "--filter-temperature", "0.3"]
+    config, _ = parse_args(["--out", "x", "--config", str(path), "--intrinsic-weight", "3", *filters])
     assert (config.intrinsic.mode, config.intrinsic.k, config.intrinsic.weight, config.intrinsic.boosted_weight) == (
         "embedding", 5, 3.0, 6.0,
     )  # fmt: skip
-    assert config.learned_reward.stage_filter == "forward"
+    filtering = config.learned_reward
+    assert (filtering.stage_filter, filtering.filter_advance, filtering.filter_temperature) == ("forward", 0.1, 0.3)
     config, _ = parse_args(["--out", "x", "--config", str(path), "--reward", "env"])
     assert config.reward == "env" and config.intrinsic.mode == "none"
     path.write_text("num_envs: 2\n")  # a partial file: the model comes from the command line

@@ -7,6 +7,7 @@ evaluation of the same step has just added):
 - ProgressCallback: the tqdm bar (steps, and after each evaluation its score and steps/s);
 - RewardDiagnosticsCallback: every step's infos into diagnostics.RewardDiagnostics; every
   `eval_every` steps their summary into `trainer.diagnostics` and TensorBoard `diagnostics/*`;
+- RefitCallback (with `refit_every`): the stage classifier refitted on the agent's own frames;
 - EvaluationCallback: every `eval_every` steps the deterministic policy on `eval_episodes`
   evaluation episodes, into `trainer.history` and TensorBoard `eval/score`, `eval/success_rate`;
 - CheckpointCallback: every `checkpoint_every` steps or `checkpoint_minutes`, whichever comes
@@ -43,6 +44,8 @@ class Trainer(Protocol):
     def evaluate(self, episodes: int) -> EvalResult: ...
 
     def save_checkpoint(self) -> int: ...
+
+    def refit_stage_classifier(self) -> None: ...
 
 
 def due(steps: int, every: int, num_envs: int) -> bool:
@@ -124,6 +127,21 @@ class EvaluationCallback(BaseCallback):
         return True
 
 
+class RefitCallback(BaseCallback):
+    """Every `refit_every` steps, the stage classifier refitted on the agent's own frames
+    (self_negatives.py); before the evaluation of the same step, which then reads it."""
+
+    def __init__(self, trainer: Trainer) -> None:
+        super().__init__()
+        self.trainer = trainer
+
+    def _on_step(self) -> bool:
+        config = self.trainer.config
+        if due(self.num_timesteps, config.refit_every, config.num_envs):
+            self.trainer.refit_stage_classifier()
+        return True
+
+
 class CheckpointCallback(BaseCallback):
     """Periodic `Trainer.save_checkpoint()`, the `--resume` point (unlike stable-baselines3's own
     CheckpointCallback it also writes the replay buffer, history, diagnostics and novelty memories,
@@ -148,4 +166,5 @@ def training_callbacks(trainer: Trainer) -> CallbackList:
     """Progress, reward diagnostics, evaluation and checkpoints, in that order (see the module docstring)."""
     progress = ProgressCallback(trainer)
     evaluation = EvaluationCallback(trainer, progress)
-    return CallbackList([progress, RewardDiagnosticsCallback(trainer), evaluation, CheckpointCallback(trainer)])
+    refit = [RefitCallback(trainer)] if trainer.config.refit_every else []
+    return CallbackList([progress, RewardDiagnosticsCallback(trainer), *refit, evaluation, CheckpointCallback(trainer)])

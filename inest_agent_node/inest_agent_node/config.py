@@ -137,6 +137,10 @@ class TrainConfig:
     # the action then comes from a policy one update older): in process on a second thread, over
     # the graph while the simulators and the reward node work
     overlap_updates: bool = False
+    # self negatives (self_negatives.py): every this many steps the stage classifier is refitted on
+    # `refit_demos`' demonstrations and the agent's own unconfirmed stage claims; 0: off
+    refit_every: int = 0
+    refit_demos: str | None = None  # the demonstration dataset the refit keeps the classifier anchored to
     sac: SacConfig = field(default_factory=SacConfig)
 
     def __post_init__(self) -> None:
@@ -176,6 +180,10 @@ class TrainConfig:
         ):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.refit_every < 0:
+            raise ValueError(f"refit_every must be >= 0 (0: no refit), got {self.refit_every}")
+        if self.refit_every and (self.reward != "inest" or not self.refit_demos):
+            raise ValueError("refitting the stage classifier needs the inest reward and refit_demos (a dataset)")
         if not self.checkpoint_minutes > 0:
             raise ValueError(f"checkpoint_minutes must be positive, got {self.checkpoint_minutes}")
         if self.seed < 0:

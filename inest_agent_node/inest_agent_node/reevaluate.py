@@ -10,6 +10,7 @@ RUN/evaluations/<layouts>-<episodes>.json (or --out, for one run).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -21,6 +22,7 @@ from inest_reward_node.runtime.model import ModelError
 from .envs import build_env
 from .evaluate import EvalResult, evaluate_vec_env, format_table, layouts
 from .policy_export import POLICY_DIR, load_policy
+from .self_negatives import REFIT_MODEL_DIR
 
 EVALUATIONS_DIR = "evaluations"
 MAX_ENVS = 10  # episodes played side by side (one encoder pass for all their frames)
@@ -29,7 +31,9 @@ MAX_ENVS = 10  # episodes played side by side (one encoder pass for all their fr
 def reevaluate(run: Path, spec: str, episodes: int) -> tuple[EvalResult, dict]:
     """The run's exported policy on the layouts `spec` (evaluate.layouts, of the run's seed)."""
     policy = load_policy(run)
-    config = policy.config
+    home = run.parent if run.name == POLICY_DIR else run
+    refitted = home / REFIT_MODEL_DIR  # the stage classifier the run refitted last (self_negatives.py)
+    config = dataclasses.replace(policy.config, model=str(refitted)) if refitted.exists() else policy.config
     on = layouts(spec, config.seed)
     on.check(episodes)
     env = build_env(config, num_envs=min(MAX_ENVS, episodes), evaluation=True)
@@ -72,8 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         for run in args.runs:
             result, record = reevaluate(run, args.layouts, args.episodes)
             name = f"{args.layouts.replace(':', '-')}-{args.episodes}.json"
-            home = run.parent if run.name == POLICY_DIR else run
-            out = args.out or home / EVALUATIONS_DIR / name
+            out = args.out or (run.parent if run.name == POLICY_DIR else run) / EVALUATIONS_DIR / name
             write_atomic(out, lambda path, record=record: path.write_text(json.dumps(record, indent=2) + "\n"))
             rows[str(run)] = result
             print(f"wrote {out}", file=sys.stderr)

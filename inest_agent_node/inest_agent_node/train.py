@@ -28,7 +28,7 @@ from inest_reward_node.learning.coverage import measure_coverage, plot_coverage
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings, prepare_run_dir
 from inest_reward_node.runtime.config import SHAPINGS, STAGE_EVIDENCE, STAGE_FILTERS, STAGE_SOURCES
 from inest_reward_node.runtime.intrinsic import INTRINSIC_MODES
-from inest_reward_node.runtime.model import TCC_SCHEMES, ModelError
+from inest_reward_node.runtime.model import TCC_SCHEMES, ModelError, load_model
 from inest_reward_node.runtime.trackers import TRACKERS
 from inest_sim_node.config import ORACLE_REWARDS
 from inest_sim_node.observation import STATE_OBSERVATIONS
@@ -49,6 +49,7 @@ from .learners import (
 )
 from .policy_export import EXPORTABLE, POLICY_DIR, export_policy, exported
 from .replay_store import load_replay_buffer, save_replay_buffer
+from .self_negatives import REFIT_MODEL_DIR, SelfNegatives
 
 CHECKPOINT_DIR = "checkpoint"
 RESULTS_FILE = "results.json"
@@ -114,6 +115,11 @@ class Trainer:
             self.env = ConcurrentUpdatesVecEnv(self.env)  # the updates run while the in-process envs step
         self.reward_env: RewardVecEnv | None = unwrap_vec_wrapper(self.env, RewardVecEnv)
         self.eval_env = build_env(config, min(EVAL_ENVS, config.final_eval_episodes), evaluation=True)
+        self.refits: list[list[int]] = []  # [steps, negatives] of each stage classifier refit
+        self.self_negatives = None
+        if config.refit_every:
+            self.self_negatives = SelfNegatives(self.reward_env.reward, config.refit_demos, config.num_envs)
+            self.reward_env.scored_hook = self.self_negatives.observe
         self.check_run_dir(resume or start_over, start_over)  # written only once the models and envs load
         if config.learner.startswith("sbx"):
             configure_jax_threads(config.threads)
@@ -137,6 +143,10 @@ class Trainer:
             )
             if self.reward_env is not None and (checkpoint / EXPLORATION_FILE).exists():
                 self.reward_env.restore_exploration(read_run_file(checkpoint / EXPLORATION_FILE, read_npz))
+            if self.self_negatives is not None and (self.run_dir / REFIT_MODEL_DIR).exists():
+                refitted = load_model(self.run_dir / REFIT_MODEL_DIR).goals(self.reward_env.reward.num_subtasks)
+                for reader in self.stage_readers():
+                    reader.classifier = refitted.require_stage_classifier()  # the negatives start over
         else:
             self.model = algorithm(
                 "MlpPolicy",
@@ -148,6 +158,15 @@ class Trainer:
             )
         if overlap_updates:
             waiting_hook_owner(self.env).while_waiting = self.model.run_pending_updates
+
+    def stage_readers(self) -> list:
+        """The training and evaluation rewards, which read one refitted stage classifier."""
+        return [self.reward_env.reward, unwrap_vec_wrapper(self.eval_env, RewardVecEnv).reward]
+
+    def refit_stage_classifier(self) -> None:
+        """Self negatives: the stage classifier refitted on the agent's unconfirmed claims so far."""
+        negatives = self.self_negatives.refit(self.run_dir, self.stage_readers())
+        self.refits.append([int(self.model.num_timesteps), negatives])
 
     def evaluate(self, episodes: int, on: Layouts = VALIDATION) -> EvalResult:
         """The deterministic policy on the layouts `on` (the periodic evaluations': validation),
@@ -222,6 +241,7 @@ class Trainer:
             "learning_curve": self.history,
             "reward_diagnostics": self.diagnostics,
             "reward_shares": reward_shares(self.diagnostics),
+            "stage_refits": self.refits,
             "config": config.to_dict(),
         }
         if self.reward_env is not None and self.reward_env.visited:
@@ -328,6 +348,7 @@ INTEGER_FLAGS = (
     "checkpoint_every",
     "seed",
     "threads",
+    "refit_every",
 )
 
 
@@ -349,6 +370,9 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     )
     parser.add_argument("--reward", choices=REWARDS)
     parser.add_argument("--model", help="reward model folder (a pretraining run's model/)")
+    parser.add_argument(
+        "--refit-demos", help="with --refit-every: the dataset whose demonstrations anchor the refitted classifier"
+    )
     parser.add_argument("--subtasks", type=int, choices=TCC_SCHEMES)
     parser.add_argument("--intrinsic", choices=INTRINSIC_MODES)
     parser.add_argument(
@@ -399,6 +423,7 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         name: getattr(args, name)
         for name in (
             *("reward", "model", "subtasks", "view", "observation", "oracle", "learner", "overlap_updates"),
+            "refit_demos",
             *INTEGER_FLAGS,
         )
         if getattr(args, name) is not None

@@ -256,7 +256,11 @@ def describe_supervision(record: dict[str, object]) -> str:
             f"record; calibrated before supervision was recorded); cameras: {cameras}"
         )
     negatives = record["negatives"]
-    kinds = ", ".join(f"{entry['episodes']} {kind}" for kind, entry in negatives.items() if entry["episodes"])
+    kinds = ", ".join(
+        f"{entry['episodes']} {kind}" if "episodes" in entry else f"{entry['frames']} unlabelled {kind} frames"
+        for kind, entry in negatives.items()
+        if entry.get("episodes", entry.get("frames"))
+    )
     return (
         f"fitted on {record['demonstrations']['episodes']} demonstrations and {record['labelled_episodes']} labelled "
         f"negative episodes ({kinds or 'none'}; {record['simulator_labelled_episodes']} by the simulator); "

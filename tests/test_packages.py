@@ -65,6 +65,7 @@ ROSDEP_KEYS = {
     "sbx": "python3-sbx-rl-pip",
     "jax": "python3-jax-pip",
     "mcap": "python3-mcap-pip",
+    "mcap_ros2": "python3-mcap-ros2-support-pip",
     "ray": "python3-ray-pip",
 }
 # imports no import statement shows: by name (learners.LEARNERS) or through another library
@@ -79,7 +80,7 @@ def imported_modules(package: str) -> set[str]:
     import ast
 
     names: set[str] = set()
-    for source in (ROOT / package / package).glob("*.py"):
+    for source in (ROOT / package / package).rglob("*.py"):  # subpackages too (runtime/, learning/)
         for node in ast.walk(ast.parse(source.read_text())):
             if isinstance(node, ast.Import):
                 names.update(alias.name.split(".")[0] for alias in node.names)

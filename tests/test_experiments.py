@@ -224,12 +224,17 @@ def test_report_of_a_results_folder_lists_every_method_with_intervals(tmp_path, 
     # the export: report and runs' small files, a training run's curve so far, no checkpoints
     export = tmp_path.with_name(f"{tmp_path.name}-export")
     (tmp_path / "oracle" / "seed0" / "checkpoint" / "replay_buffer.npz").write_bytes(b"large")
+    (tmp_path / "oracle" / "seed0" / "policy").mkdir()
+    (tmp_path / "oracle" / "seed0" / "policy" / "actor.safetensors").write_bytes(b"weights")
     assert main(["report", str(grid), "--export", str(export)]) == 0
     assert (export / "report.md").read_text() == (tmp_path / "report.md").read_text()
     assert (export / "summary.json").exists() and (export / "learning_curves.png").exists()
     assert (export / "learning_curves_main.png").exists()
     finished = export / "oracle" / "seed0"
     assert (finished / "results.json").exists() and not (finished / "checkpoint").exists()
+    assert (
+        finished / "policy" / "actor.safetensors"
+    ).read_bytes() == b"weights"  # the policy, where inest-evaluate looks
     assert json.loads((export / "oracle" / "seed2" / "history.json").read_text()) == curve[:1]
     # a run that evaluated after the report read it is exported as the report read it
     reported = json.loads((tmp_path / "summary.json").read_text())["runs"]

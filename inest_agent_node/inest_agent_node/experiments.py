@@ -51,9 +51,12 @@ from inest_common.files import checkout_relative, read_json, read_run_file, writ
 from inest_common.processes import dies_with_parent
 from inest_common.progress import track
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings
+from inest_reward_node.runtime.model import MODEL_FILE, WEIGHTS_FILE
 
 from .config import SPEED_ONLY_SETTINGS, GridConfig, ReferenceResult, nested_defaults
 from .grid_quality import QUALITY_DIR, quality_table
+from .policy_export import ACTOR_FILE, POLICY_DIR, POLICY_FILE
+from .self_negatives import REFIT_MODEL_DIR
 from .summary import CURVES_FILE, SUMMARY_FILE, plot_curves, read_run, summarise, write_summary
 from .train import CHECKPOINT_DIR, DIAGNOSTICS_FILE, HISTORY_FILE, RESULTS_FILE, continuation_flags, parse_args
 
@@ -62,7 +65,13 @@ REPORT_FILE = "report.md"
 # what `report --export` copies: the report's files, a run's own files, and while a run still
 # trains its learning curve and reward diagnostics so far (from its checkpoint, export_results)
 REPORT_FILES = (REPORT_FILE, SUMMARY_FILE, CURVES_FILE, GRID_FILE)
-RUN_FILES = (CONFIG_FILE, RESULTS_FILE, "learning_curve.png", "coverage.png")
+# a finished run's files an export keeps, at the same paths: with its exported policy and the
+# stage classifier it refitted, `inest-evaluate` re-evaluates the copy
+RUN_FILES = (
+    *(CONFIG_FILE, RESULTS_FILE, "learning_curve.png", "coverage.png"),
+    *(f"{POLICY_DIR}/{name}" for name in (ACTOR_FILE, POLICY_FILE)),
+    *(f"{REFIT_MODEL_DIR}/{name}" for name in (MODEL_FILE, WEIGHTS_FILE)),
+)
 EXECUTORS = ("local", "ray")
 
 
@@ -499,7 +508,9 @@ def export_results(out: Path, target: Path, runs: dict[str, dict[str, Any]]) -> 
                 (run_copy / HISTORY_FILE).write_text(json.dumps(reported) + "\n")
         for file in files:
             if (run / file).is_file():
-                copy(run / file, run_copy / Path(file).name)
+                kept = run_copy / (Path(file).name if file.startswith(CHECKPOINT_DIR) else file)
+                kept.parent.mkdir(exist_ok=True)
+                copy(run / file, kept)
     for quality in out.glob(f"*/{QUALITY_DIR}"):
         shutil.rmtree(target / quality.relative_to(out), ignore_errors=True)
         shutil.copytree(quality, target / quality.relative_to(out), copy_function=copy)

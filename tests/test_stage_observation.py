@@ -134,6 +134,9 @@ def test_a_claim_its_block_earns_within_a_few_steps_is_early_a_later_or_never_on
         2 / 3
     )
     assert (summary["shaping_share"], summary["bonus_share"], summary["intrinsic_share"]) == (0.25, 0.5, 0.25)
+    # every step of every env until its block is placed was paid in a stage claimed early
+    assert summary["unearned_step_per_step"] == pytest.approx((2 + 7 + 6) / 21)
+    assert summary["intrinsic_unearned_per_step"] == -1.0 and summary["intrinsic_earned_per_step"] == -1.0
 
 
 def test_learned_reward_training_sees_the_trackers_stage_and_records_diagnostics(tiny_tcc_run, tmp_path):

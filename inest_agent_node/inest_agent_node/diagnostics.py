@@ -69,7 +69,10 @@ class RewardDiagnostics:
     claim (the block was then placed within EARLY_CLAIM_STEPS: the tracker was a frame or two
     ahead) and an unplaced claim (it was not: the reward paid for a block not placed), a miss (the
     true progress reached more blocks than the stage ever claimed). Each part's share of the
-    learned reward: its per-step mean's size over the sum of all three's."""
+    learned reward: its per-step mean's size over the sum of all three's. Per step also the
+    share of steps spent in a stage claimed before its blocks were placed (`unearned_step`), and
+    the intrinsic bonus paid on those steps and on the others (`intrinsic_unearned`,
+    `intrinsic_earned`): whether the novelty bonus pays for a falsely claimed stage."""
 
     num_envs: int
     num_subtasks: int
@@ -94,6 +97,11 @@ class RewardDiagnostics:
             claimed = int(claimed_blocks(info[LEARNED_STAGE], self.num_subtasks)) if learned else progress
             trace.max_claimed = max(trace.max_claimed, claimed)
             trace.claim(claimed, progress)
+            if learned:  # where the novelty bonus pays: in a stage the blocks earned, or in one claimed early
+                unearned = claimed > trace.max_progress
+                self.add("unearned_step", [float(unearned)])
+                if INTRINSIC in info:
+                    self.add(f"intrinsic_{'unearned' if unearned else 'earned'}", [info[INTRINSIC]])
             if dones[index]:
                 trace.end()
                 episode: dict[str, Any] = {"final_progress": progress, "max_progress": trace.max_progress}

@@ -99,6 +99,11 @@ def load_policy(folder: str | Path) -> ExportedPolicy:
     folder = Path(folder)
     if not (folder / POLICY_FILE).exists() and (folder / POLICY_DIR / POLICY_FILE).exists():
         folder = folder / POLICY_DIR
+    if folder.is_dir() and not (folder / POLICY_FILE).exists():
+        raise RunFileError(
+            f"{folder} holds no exported policy ({POLICY_DIR}/{POLICY_FILE}): runs trained before inest-train "
+            "exported its actor have none"
+        )
     info = read_versioned_json(folder / POLICY_FILE, FORMAT, VERSION, "exported policy", RunFileError)
     tensors = read_run_file(folder / ACTOR_FILE, lambda path: load_file(str(path)))
     count = len(tensors) // 2

@@ -429,8 +429,10 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
     lines = [
         f"# Experiment grid: {out}",
         "",
-        "Final evaluations (each run's `final_eval_episodes` on the evaluation layouts); the mean",
-        "score's 95 % bootstrap interval is over seeds; success: all three blocks in order.",
+        "Final evaluations (each run's `final_eval_episodes` on the layouts in its row: `test`, which no",
+        "choice of setting saw, or `legacy` for runs made before the validation/test split, evaluated where",
+        "their settings were chosen); the mean score's 95 % bootstrap interval is over seeds; success: all",
+        "three blocks in order; validation score: the same policies on the validation layouts.",
     ]
     for stale in set(out.glob(table_curves_file("*"))) - {out / table_curves_file(key) for key in tables}:
         stale.unlink()  # a table the grid no longer has

@@ -131,8 +131,9 @@ def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, caps
 
     recorded = json.loads((tmp_path / "out" / "grid.json").read_text())
     del recorded["cells"]["oracle/seed0"]["config"]["checkpoint_minutes"]  # recorded before it existed
+    del recorded["cells"]["oracle/seed0"]["config"]["refit_every"]  # and a setting of what it trains, off then
     (tmp_path / "out" / "grid.json").write_text(json.dumps(recorded))
-    assert main(["run", str(grid), "oracle"]) == 0  # how often it checkpoints is not what it trains
+    assert main(["run", str(grid), "oracle"]) == 0  # neither is a change: the cell stays finished
     methods["oracle"]["args"] += ["--observation", "state"]  # the finished cell's settings changed
     grid.write_text(yaml.safe_dump(yaml.safe_load(grid.read_text()) | {"methods": methods}))
     assert main(["run", str(grid), "oracle"]) == 2
@@ -287,12 +288,13 @@ def test_the_ranking_joins_neighbours_by_whether_their_intervals_overlap():
 def test_report_shows_what_each_reward_paid_for_from_its_first_to_its_last_window(tmp_path):
     curve = [[100, 0.1, 0.0]]
     first = {"reward_per_step": -0.7, "shaping_per_step": -0.7, "bonus_per_step": 0.0, "intrinsic_per_step": 0.0}
-    first |= {"final_progress_mean": 0.04, "unearned_completion_rate": 0.0}
+    first |= {"final_progress_mean": 0.04, "unearned_completion_rate": 0.0, "early_claim_rate": 0.0}
+    first |= {"unplaced_claim_rate": 0.0}
     for seed, (shaping, unearned) in enumerate([(-0.1, 0.2), (-0.2, 0.3)]):
         write_run(tmp_path, "hacked", seed, 0.0, curve)
         results_file = tmp_path / "hacked" / f"seed{seed}" / "results.json"
         last = first | {"reward_per_step": shaping, "shaping_per_step": shaping, "final_progress_mean": 0.0}
-        last |= {"unearned_completion_rate": unearned}
+        last |= {"unearned_completion_rate": unearned, "early_claim_rate": 0.1, "unplaced_claim_rate": unearned - 0.1}
         results_file.write_text(
             json.dumps(json.loads(results_file.read_text()) | {"reward_diagnostics": [first, last]})
         )
@@ -303,8 +305,9 @@ def test_report_shows_what_each_reward_paid_for_from_its_first_to_its_last_windo
     assert main(["report", str(tmp_path)]) == 0
     lines = (tmp_path / "report.md").read_text().splitlines()
     # the reward rose while the blocks placed fell to none, and the stage claimed unplaced blocks
-    assert "| hacked | -0.7 → -0.15 | -0.7 → -0.15 | 0 → 0 | 0 → 0 | 0.04 → 0 | 0 % → 25 % |" in lines
-    assert "| oracle | 0.1 → 0.1 | | | | 1 → 1 | |" in lines  # the environment's reward has no parts
+    hacked = "| hacked | -0.7 → -0.15 | -0.7 → -0.15 | 0 → 0 | 0 → 0 | 0.04 → 0 |"
+    assert f"{hacked} 0 % → 25 % | 0 % → 10 % | 0 % → 15 % |" in lines
+    assert "| oracle | 0.1 → 0.1 | | | | 1 → 1 | | | |" in lines  # the environment's reward has no parts
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert [row["reward_diagnostics"]["last"]["shaping_per_step"] for row in summary["runs"][:2]] == [-0.1, -0.2]
 

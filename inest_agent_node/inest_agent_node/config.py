@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import re
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -229,10 +229,12 @@ class TrainConfig:
         return cls.from_dict(merge_settings(data, overrides or {}))
 
 
-def nested_defaults() -> dict[str, Any]:
-    """Today's defaults of the nested settings: what a saved run's config lacks of a sub-setting
-    added since it was written is taken to be that (a resumed run, a continued grid cell)."""
-    return {"learned_reward": RewardConfig().to_dict(), "sac": asdict(SacConfig())}
+def setting_defaults() -> dict[str, Any]:
+    """Today's defaults of the settings a saved run's config may lack: one added since it was
+    written is taken to be its default (a resumed run, a continued grid cell). New settings
+    default to what runs did before them, so this changes nothing a run was trained with."""
+    plain = {f.name: f.default for f in fields(TrainConfig) if f.default is not MISSING}
+    return {**plain, "learned_reward": RewardConfig().to_dict(), "sac": asdict(SacConfig())}
 
 
 # inest-train flags an experiment grid sets for every cell itself (experiments.py); `model` has its own key

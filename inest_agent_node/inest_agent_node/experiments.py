@@ -53,7 +53,8 @@ from inest_common.progress import track
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings
 from inest_reward_node.runtime.model import MODEL_FILE, WEIGHTS_FILE
 
-from .config import SPEED_ONLY_SETTINGS, GridConfig, ReferenceResult, nested_defaults
+from .config import SPEED_ONLY_SETTINGS, GridConfig, ReferenceResult, setting_defaults
+from .diagnostics import EARLY_CLAIM_STEPS
 from .grid_quality import QUALITY_DIR, quality_table
 from .policy_export import ACTOR_FILE, POLICY_DIR, POLICY_FILE
 from .self_negatives import REFIT_MODEL_DIR
@@ -156,7 +157,7 @@ def record_grid(grid: GridConfig, cells: list[Cell], out: Path) -> None:
     for cell in cells:
         before = recorded.get(cell.name)
         if before is not None and (cell.run_dir / CONFIG_FILE).exists():
-            earlier = merge_settings(nested_defaults(), checkout_relative(before["config"], root))
+            earlier = merge_settings(setting_defaults(), checkout_relative(before["config"], root))
             settings = checkout_relative(cell.settings, root)
             if differing := sorted(
                 key
@@ -364,6 +365,8 @@ DIAGNOSTIC_COLUMNS = {
     "intrinsic / step": "intrinsic_per_step",
     "blocks in order at episode end": "final_progress_mean",
     "episodes with an unearned completion": "unearned_completion_rate",
+    "... claimed early, then earned": "early_claim_rate",
+    "... never placed in time": "unplaced_claim_rate",
 }
 
 
@@ -379,7 +382,8 @@ def diagnostics_table(methods: list[str], rows: list[dict[str, Any]]) -> list[st
         "",
         "What each reward paid for in training (each run's `reward_diagnostics`: its first → its last",
         "window of training episodes, mean over finished seeds; an unearned completion: the reward's",
-        "stage claimed a block that had never been placed; blank: the reward has no such part).",
+        "stage claimed a block that had never been placed, split into claims its block earned within",
+        f"{EARLY_CLAIM_STEPS} steps and claims of a block not placed in time; blank: the reward has no such part).",
         "",
         f"| method | {' | '.join(DIAGNOSTIC_COLUMNS)} |",
         "|---|" + "---|" * len(DIAGNOSTIC_COLUMNS),

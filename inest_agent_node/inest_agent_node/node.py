@@ -124,13 +124,14 @@ class AgentNode(Node):
         source = settings.policy or settings.out
         policy = load_policy(source)
         env = with_observation(graph, policy.info["observation"], policy.info["stage_subtasks"])
-        result = evaluate_vec_env(env, policy.predict, settings.episodes, layouts(settings.layouts))
+        on = layouts(settings.layouts)
+        result = evaluate_vec_env(env, policy.predict, settings.episodes, on)
         label = f"{Path(source).name} ({policy.info['steps']} steps) over the graph"
         print(format_table({label: result}), flush=True)
         evaluation = {
             "policy": source,
             "label": label,
-            "layouts": layouts(settings.layouts).to_dict(),
+            "layouts": on.to_dict(),
             "final_evaluation": result.to_dict(),
             "config": self.train_config.to_dict(),
         }

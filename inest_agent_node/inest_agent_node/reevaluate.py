@@ -28,11 +28,15 @@ EVALUATIONS_DIR = "evaluations"
 MAX_ENVS = 10  # episodes played side by side (one encoder pass for all their frames)
 
 
+def run_home(run: Path) -> Path:
+    """The training run folder of RUN, given either it or its policy folder."""
+    return run.parent if run.name == POLICY_DIR else run
+
+
 def reevaluate(run: Path, spec: str, episodes: int) -> tuple[EvalResult, dict]:
     """The run's exported policy on the layouts `spec` (evaluate.layouts, of the run's seed)."""
     policy = load_policy(run)
-    home = run.parent if run.name == POLICY_DIR else run
-    refitted = home / REFIT_MODEL_DIR  # the stage classifier the run refitted last (self_negatives.py)
+    refitted = run_home(run) / REFIT_MODEL_DIR  # the stage classifier the run refitted last (self_negatives.py)
     config = dataclasses.replace(policy.config, model=str(refitted)) if refitted.exists() else policy.config
     on = layouts(spec, config.seed)
     on.check(episodes)
@@ -76,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         for run in args.runs:
             result, record = reevaluate(run, args.layouts, args.episodes)
             name = f"{args.layouts.replace(':', '-')}-{args.episodes}.json"
-            out = args.out or (run.parent if run.name == POLICY_DIR else run) / EVALUATIONS_DIR / name
+            out = args.out or run_home(run) / EVALUATIONS_DIR / name
             write_atomic(out, lambda path, record=record: path.write_text(json.dumps(record, indent=2) + "\n"))
             rows[str(run)] = result
             print(f"wrote {out}", file=sys.stderr)

@@ -16,6 +16,7 @@ history.json, or a copy of it beside config.json, and no results.json yet) is li
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 from pathlib import Path
@@ -37,8 +38,14 @@ def reward_supervision(config: dict[str, Any]) -> dict[str, Any]:
     reads (the reward model's supervision record); the oracle reads the simulator."""
     if config.get("reward", "env") == "env" or not config.get("model"):
         return {"labelled_episodes": None, "cameras": ["simulator state"]}
+    return model_supervision(config["model"])
+
+
+@functools.cache
+def model_supervision(model: str) -> dict[str, Any]:
+    """The supervision record of one reward model, read once for all the seeds that share it."""
     try:
-        record = recorded_supervision(read_model_metadata(model_folder(config["model"])))
+        record = recorded_supervision(read_model_metadata(model_folder(model)))
     except ModelError:
         return {"labelled_episodes": None, "cameras": None}  # a model no longer where it was
     return {"labelled_episodes": record["labelled_episodes"], "cameras": record["cameras"]}

@@ -36,7 +36,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, unwrap_vec_wrapper
 
 from .callbacks import training_callbacks
-from .config import REWARDS, SPEED_ONLY_SETTINGS, TrainConfig, nested_defaults
+from .config import REWARDS, SPEED_ONLY_SETTINGS, TrainConfig, setting_defaults
 from .envs import ConcurrentUpdatesVecEnv, RewardVecEnv, build_env
 from .evaluate import TEST, VALIDATION, EvalResult, Layouts, evaluate_vec_env, format_table, plot_learning_curve
 from .learners import (
@@ -178,7 +178,7 @@ class Trainer:
     def check_run_dir(self, overwrite: bool, start_over: bool) -> None:
         settings = self.config.to_dict()
         must_match = set() if start_over else set(settings) - SPEED_ONLY_SETTINGS - {"total_steps"}
-        prepare_run_dir(self.run_dir, settings, overwrite, must_match, nested_defaults())
+        prepare_run_dir(self.run_dir, settings, overwrite, must_match, setting_defaults())
 
     def save_checkpoint(self) -> int:
         """Model, replay buffer, history and novelty memories, each written whole before it replaces

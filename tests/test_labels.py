@@ -3,14 +3,17 @@ become a labelled clip file that calibration fits on, and that the model records
 
 from __future__ import annotations
 
+import dataclasses
+
 import cv2
 import numpy as np
 from inest_bringup.recording import McapRecording
 from inest_interfaces.msg import Reward
 from inest_reward_node.learning import labels
 from inest_reward_node.learning.calibrate import supervision
-from inest_reward_node.learning.clips import Clip, clip_file_labels, load_clips, save_clips
+from inest_reward_node.learning.clips import Clip, clip_file_labels, load_clips, random_play, save_clips
 from inest_reward_node.learning.config import CalibrationConfig, PretrainConfig
+from inest_reward_node.learning.pretrain import recalibrate
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Image
 
@@ -77,3 +80,26 @@ def test_an_mcap_recording_of_a_camera_splits_into_episodes_where_the_reward_nod
     assert labels.main([*argv, "--image-topic", "camera/image_raw", "--image-size", "16"]) == 0
     assert load_clips(out, "ego", 16)[0].progress.tolist() == [0, 0, 1]
     assert labels.main([*argv, "--image-topic", "camera/other", "--image-size", "16"]) == 2
+
+
+def test_labelled_clips_can_raise_the_thresholds_as_the_simulator_s_random_play_does(tiny_tcc_run, tmp_path):
+    """A robot has no simulator to play randomly: the same random-play episodes, labelled in a
+    clip file and given with clips_raise_thresholds, calibrate the same thresholds and classifier."""
+    config, run = tiny_tcc_run
+    played = tmp_path / "random.npz"
+    save_clips(played, random_play("ego", 48, 3), "ego", "random play", labelled_by="file")
+
+    def thresholds(name: str, **calibration) -> tuple[list[float], np.ndarray]:
+        settings = dataclasses.replace(config.calibration, wrong_order_episodes=0, **calibration)
+        settings = dataclasses.replace(settings, stage_head=dataclasses.replace(settings.stage_head, iterations=0))
+        model = recalibrate(dataclasses.replace(config, calibration=settings), run / "model", tmp_path / name, False)
+        return model.goals(3).thresholds, model.goals(3).stage_classifier.out_weight
+
+    simulator = thresholds("simulator", random_episodes=3)
+    robot = thresholds("robot", random_episodes=0, clips=(str(played),), clips_raise_thresholds=True)
+    classifier_only = thresholds("classifier-only", random_episodes=0, clips=(str(played),))
+    demonstrations_only = thresholds("demonstrations-only", random_episodes=0)
+    assert all(np.greater(simulator[0], demonstrations_only[0]))  # random play raised every threshold here
+    np.testing.assert_allclose(robot[0], simulator[0])
+    np.testing.assert_allclose(robot[1], simulator[1])
+    np.testing.assert_allclose(classifier_only[0], demonstrations_only[0])  # without it: demonstrations alone

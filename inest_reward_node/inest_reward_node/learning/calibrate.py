@@ -124,13 +124,20 @@ def calibrate(
         model.embed(demo.frames) for demo in track(demos, desc="embedding demos", leave=False, disable=not progress_bar)
     ]
     size = config.encoder.image_size
-    plays = random_play(config.view, size, config.calibration.random_episodes)
+    calibration = config.calibration
+    plays = random_play(config.view, size, calibration.random_episodes)
     negatives = [model.embed(play.frames) for play in plays]
-    others = wrong_order_play(config.view, size, config.calibration.wrong_order_episodes)  # classifier only
-    others += [clip for path in config.calibration.clips for clip in load_clips(path, config.view, size)]
-    other_embeddings = [model.embed(clip.frames) for clip in others]
+    wrong_order = wrong_order_play(config.view, size, calibration.wrong_order_episodes)  # classifier only
+    clips = [clip for path in calibration.clips for clip in load_clips(path, config.view, size)]
+    clip_embeddings = [model.embed(clip.frames) for clip in clips]
+    others = wrong_order + clips
+    other_embeddings = [model.embed(clip.frames) for clip in wrong_order] + clip_embeddings
+    # the labelled episodes the thresholds are raised against, and their embeddings
+    raising, raising_embeddings = (
+        (plays + clips, negatives + clip_embeddings) if calibration.clips_raise_thresholds else (plays, negatives)
+    )
     head_episodes = (
-        stage_head_episodes(config, demos, plays + others) if config.calibration.stage_head.iterations else ([], [])
+        stage_head_episodes(config, demos, plays + others) if calibration.stage_head.iterations else ([], [])
     )
     schemes = {"tcc": TCC_SCHEMES, "reds": (config.reds.subtasks,)}.get(config.method, (1,))
     result = {}
@@ -139,13 +146,13 @@ def calibrate(
         goals = model.reds_subtask_embeddings() if config.method == "reds" else goal_embeddings(embeddings, ends)
         partial = SubtaskGoals(goals, [], xirl_distance_scale(embeddings, goals[-1]))
         rewards = [subtask_rewards(model, emb, partial) for emb in embeddings]
-        negative_rewards = [subtask_rewards(model, emb, partial) for emb in negatives]
+        negative_rewards = [subtask_rewards(model, emb, partial) for emb in raising_embeddings]
 
         def false_completions(subtask: int, scheme=scheme, negative_rewards=negative_rewards) -> list[np.ndarray]:
-            """Random play's reward for `subtask`, -inf where the subtask was really completed."""
+            """The negatives' reward for `subtask`, -inf where the subtask was really completed."""
             return [
                 np.where(play.not_yet_completed(scheme, subtask), rewards[:, subtask], -np.inf)
-                for play, rewards in zip(plays, negative_rewards, strict=True)
+                for play, rewards in zip(raising, negative_rewards, strict=True)
             ]
 
         partial.thresholds = calibrate_thresholds(
@@ -153,7 +160,7 @@ def calibrate(
             ends,
             scheme,
             config.shaping.hold_steps,
-            config.calibration,
+            calibration,
             false_completions,
         )
         partial.start_distances = start_distances(embeddings, ends, goals)
@@ -164,10 +171,10 @@ def calibrate(
             scheme + 1,
             negatives + other_embeddings,
             [true_stages(clip.progress, clip.held, scheme) for clip in plays + others],
-            config.calibration.classifier,
+            calibration.classifier,
         )
-        head = config.calibration.stage_head
-        if head.iterations and scheme in config.calibration.stage_head_subtasks:
+        head = calibration.stage_head
+        if head.iterations and scheme in calibration.stage_head_subtasks:
             labelled, played = head_episodes
             partial.stage_head = fit_stage_head(
                 [demo.frames for demo in labelled] + [clip.frames for clip in played],

@@ -46,7 +46,9 @@ class CalibrationConfig:
     simulator's true ordered progress, and on the labelled `clips` files (clips.py; e.g. a trained
     policy's own rollouts from inest-record-clips, whose frames the classifier must not mistake
     for progress). The pixel stage head (runtime/stage_head.py) is fitted on the same frames (the first
-    `stage_head.max_demos` demonstrations). The thresholds use random play only."""
+    `stage_head.max_demos` demonstrations). The thresholds use random play only, and the clip files'
+    episodes too with `clips_raise_thresholds`: a robot's labelled episodes, which stand in for the
+    simulator's random play where there is no simulator."""
 
     percentile: float = 2.0
     random_episodes: int = 50  # 0: demonstrations only
@@ -54,7 +56,8 @@ class CalibrationConfig:
     demo_pass_rate: float = 0.98
     late_frames: int = 10
     wrong_order_episodes: int = 20  # for the stage classifier only; 0: none
-    clips: tuple[str, ...] = ()  # clip files (clips.save_clips) for the stage classifier only
+    clips: tuple[str, ...] = ()  # clip files (clips.save_clips) for the stage classifier ...
+    clips_raise_thresholds: bool = False  # ... and, with this, for the thresholds as random play
     classifier: StageClassifierConfig = field(default_factory=StageClassifierConfig)
     stage_head: StageHeadConfig = field(default_factory=StageHeadConfig)  # the pixel one, same frames
     # the subtask schemes that get a pixel stage head (each costs `stage_head.iterations`); a scheme

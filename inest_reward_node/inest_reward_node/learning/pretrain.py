@@ -324,7 +324,13 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         nargs="+",
         default=list(defaults.calibration.clips),
         metavar="FILE",
-        help="labelled clip files (inest-record-clips) the stage classifier is also fitted on",
+        help="labelled clip files (inest-record-clips, inest-label-clips) the stage classifier is also fitted on",
+    )
+    parser.add_argument(
+        "--clips-raise-thresholds",
+        action="store_true",
+        help="the clip files' episodes also raise the completion thresholds, as random play does "
+        "(a robot's labelled episodes standing in for the simulator's)",
     )
     head_defaults = defaults.calibration.stage_head
     for option, (setting, kind, text) in STAGE_HEAD_OPTIONS.items():
@@ -415,6 +421,7 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
             demo_pass_rate=args.demo_pass_rate,
             wrong_order_episodes=args.wrong_order_episodes,
             clips=tuple(args.clips),
+            clips_raise_thresholds=args.clips_raise_thresholds,
             stage_head_subtasks=tuple(args.stage_head_subtasks),
             stage_head=dataclasses.replace(
                 defaults.calibration.stage_head,

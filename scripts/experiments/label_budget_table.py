@@ -1,8 +1,11 @@
-"""The Markdown table of docs/robot-reward.md from the label-budget reports: per labelling budget
+"""The Markdown tables of docs/robot-reward.md from the label-budget reports: per labelling budget
 and stage-evidence setting, red / blue / yellow within-subtask shaping rho (own tracker), misses,
-false completions on random and wrong-order play, and those not merely early.
+false completions on random and wrong-order play, and those not merely early; for the labelling
+path (labelling_path_timing.sh, folders with a timings.json), per path the label rows written and
+the seconds of each step before the same figures.
 
     python scripts/experiments/label_budget_table.py results/robot-reward/label-budget/selection
+    python scripts/experiments/label_budget_table.py results/robot-reward/labelling-path
 """
 
 from __future__ import annotations
@@ -18,26 +21,49 @@ def triple(values: list[float], spec: str, scale: float = 1.0) -> str:
     return " / ".join(format(scale * value, spec) for value in values)
 
 
-def row(report: Path) -> str:
-    budget, _, setting = report.parent.name.partition("-")
+FIGURES = (
+    "shaping ρ red / blue / yellow | missed | false: random | false: wrong order "  # noqa: RUF001
+    "| not early: random | not early: wrong order"
+)
+TIMED_STEPS = ("record", "template", "label", "recalibrate", "check")
+
+
+def figures(report: Path) -> list[str]:
     subtasks = json.loads(report.read_text())["schemes"]["3"]["per_subtask"]
     rho = triple([sub["spearman_shaping_within"]["median"] for sub in subtasks], ".2f")
     missed = triple([sub["miss_rate"] for sub in subtasks], "g", 100)
-    cells = [f"{BUDGETS[budget]}", setting, rho, f"{missed} %"]
+    cells = [rho, f"{missed} %"]
     for rates in ("false_completion_rate", "false_not_early_rate"):
         for kind in ("random", "wrong_order"):
             cells.append(f"{triple([sub[rates][kind] for sub in subtasks], 'g', 100)} %")
-    return "| " + " | ".join(cells) + " |"
+    return cells
+
+
+def budget_row(report: Path) -> str:
+    budget, _, setting = report.parent.name.partition("-")
+    return "| " + " | ".join([f"{BUDGETS[budget]}", setting, *figures(report)]) + " |"
+
+
+def path_row(report: Path) -> str:
+    timings = json.loads((report.parent / "timings.json").read_text())
+    seconds = " / ".join(f"{timings['seconds'][step]:.1f}" for step in TIMED_STEPS)
+    cells = [report.parent.name, str(timings["label_rows"]), "yes" if timings["clips_raise_thresholds"] else "no"]
+    return "| " + " | ".join([*cells, seconds, *figures(report)]) + " |"
 
 
 def main(folder: str) -> None:
-    print(
-        "| labelled episodes | stage evidence | shaping ρ red / blue / yellow | missed | false: random "  # noqa: RUF001
-        "| false: wrong order | not early: random | not early: wrong order |"
-    )
+    reports = sorted(Path(folder).glob("*/report.json"))
+    timed = [report for report in reports if (report.parent / "timings.json").exists()]
+    if timed:
+        print(f"| episodes | label rows | they raise the thresholds | seconds: {' / '.join(TIMED_STEPS)} | {FIGURES} |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
+        for report in timed:
+            print(path_row(report))
+        return
+    print(f"| labelled episodes | stage evidence | {FIGURES} |")
     print("|---|---|---|---|---|---|---|---|")
-    for report in sorted(Path(folder).glob("*/report.json"), key=lambda p: (BUDGETS[p.parent.name.split("-")[0]], p)):
-        print(row(report))
+    for report in sorted(reports, key=lambda p: (BUDGETS[p.parent.name.split("-")[0]], p)):
+        print(budget_row(report))
 
 
 if __name__ == "__main__":

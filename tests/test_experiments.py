@@ -421,6 +421,18 @@ def test_the_shipped_grid_is_the_thesis_grid_and_its_methods_parse(monkeypatch):
         assert shown == expected[method] and settings["total_steps"] == 500_000 and settings["threads"] == 1
 
 
+@pytest.mark.parametrize(
+    "path", sorted(p for p in (ROOT / "inest_agent_node" / "config").glob("*.yaml") if "methods:" in p.read_text())
+)
+def test_every_shipped_grid_parses_and_its_committed_models_serve_it(monkeypatch, path):
+    monkeypatch.chdir(ROOT)
+    grid = dataclasses.replace(GridConfig.from_yaml(path), demos=None)
+    models = [method.model for method in grid.methods.values() if method.model]
+    assert all((ROOT / model / "model.json").is_file() for model in models if model.startswith("results/"))
+    ready = [name for name, method in grid.methods.items() if not method.model or Path(method.model).is_dir()]
+    assert len(plan(grid, ready, ROOT)) == len(ready) * len(grid.seeds)
+
+
 @pytest.mark.skipif(importlib.util.find_spec("ray") is None, reason="ray is not installed")
 def test_ray_tasks_train_the_same_cells_into_the_same_layout(tmp_path, capsys, tiny_model):
     methods = {

@@ -6,7 +6,10 @@
 # layout seeds from 5,000,000; negatives at seed offset 2,000,000), then every budget's held-out
 # report (200 validation demonstrations of runs/demos, 40 + 40 negatives) with and without it.
 # Reports go to results/robot-reward/label-budget/{selection,held-out}/<name>/ with <name>.txt.
-#   bash scripts/experiments/ego_label_budget.sh [models|selection|held-out]   # default: all three
+# `window`: with no labelled episode, the window stage classifier (offsets 0 2 4 8 16) fitted
+# without and with 200 rewound and 200 reordered demonstrations (runs/ego-labels/window-demo<N>/),
+# on the selection set, read alone and through the forward filter (labels0-window-demo<N>[-forward]).
+#   bash scripts/experiments/ego_label_budget.sh [models|selection|held-out|window]   # default: the first three
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$ROOT"
@@ -62,6 +65,21 @@ for stage in "${stages[@]}"; do
           report "$OUT/held-out/labels$budget-$filter" "runs/ego-labels/labels$budget/model" runs/demos ${FILTERS[$filter]}
         done
       done ;;
-    *) echo "ego_label_budget: unknown stage $stage (models, selection, held-out)" >&2; exit 2 ;;
+    window)
+      mkdir -p "$OUT/selection"
+      for count in 0 200; do
+        model=runs/ego-labels/window-demo$count/model
+        [ -f "$model/model.json" ] || {
+          rm -rf "runs/ego-labels/window-demo$count"
+          "$BIN/inest-pretrain" runs/demos --out "runs/ego-labels/window-demo$count" --recalibrate results/long-horizon/reward-model \
+            --random-episodes 0 --wrong-order-episodes 0 --stage-head-iterations 0 --threads 1 \
+            --stage-window-offsets 0 2 4 8 16 --demo-negatives "$count"
+        }
+        report "$OUT/selection/labels0-window-demo$count" "$model" runs/demos-select --negative-seed-offset 2000000 \
+          --scorer-option stage_evidence=window
+        report "$OUT/selection/labels0-window-demo$count-forward" "$model" runs/demos-select --negative-seed-offset 2000000 \
+          --scorer-option stage_evidence=window --scorer-option stage_filter=forward
+      done ;;
+    *) echo "ego_label_budget: unknown stage $stage (models, selection, held-out, window)" >&2; exit 2 ;;
   esac
 done

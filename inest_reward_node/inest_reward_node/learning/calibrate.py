@@ -19,9 +19,11 @@ from inest_common.progress import track
 
 from ..runtime.methods import subtask_rewards
 from ..runtime.model import TCC_SCHEMES, ModelMetadata, RewardModel, SubtaskGoals
+from ..runtime.stage_window import StageWindow, window_features
 from .clips import Clip, clip_file_labels, load_clips, random_play, wrong_order_play
 from .config import CalibrationConfig, PretrainConfig
 from .data import Demo, load_demos
+from .demo_negatives import demo_negatives
 from .stage_fitting import fit_stage_classifier, fit_stage_head
 from .task_stages import demo_stages, true_stages
 
@@ -165,14 +167,15 @@ def calibrate(
         )
         partial.start_distances = start_distances(embeddings, ends, goals)
         partial.start_embeddings = start_embeddings(embeddings, ends)
+        stages = [demo_stages(demo.progress, demo.labels[scheme], scheme) for demo in demos]
+        negative_stages = [true_stages(clip.progress, clip.held, scheme) for clip in plays + others]
         partial.stage_classifier = fit_stage_classifier(
-            embeddings,
-            [demo_stages(demo.progress, demo.labels[scheme], scheme) for demo in demos],
-            scheme + 1,
-            negatives + other_embeddings,
-            [true_stages(clip.progress, clip.held, scheme) for clip in plays + others],
-            calibration.classifier,
+            embeddings, stages, scheme + 1, negatives + other_embeddings, negative_stages, calibration.classifier
         )
+        if calibration.window_offsets:
+            partial.stage_window = fit_stage_window(
+                embeddings, stages, scheme + 1, negatives + other_embeddings, negative_stages, calibration
+            )
         head = calibration.stage_head
         if head.iterations and scheme in calibration.stage_head_subtasks:
             labelled, played = head_episodes
@@ -186,6 +189,31 @@ def calibrate(
             )
         result[scheme] = partial
     return result
+
+
+def fit_stage_window(
+    embeddings: list[np.ndarray],
+    stages: list[np.ndarray],
+    num_stages: int,
+    negatives: list[np.ndarray],
+    negative_stages: list[np.ndarray],
+    calibration: CalibrationConfig,
+) -> StageWindow:
+    """The window stage classifier on every episode's windows: the demonstrations', the labelled
+    negatives' and the demonstrations rewound and reordered (demo_negatives.py)."""
+    offsets = calibration.window_offsets
+    rebuilt = demo_negatives(stages, calibration.demo_negatives, calibration.classifier.seed)
+    negatives = negatives + [embeddings[demo][order] for demo, order in rebuilt]
+    negative_stages = negative_stages + [stages[demo][order] for demo, order in rebuilt]
+    classifier = fit_stage_classifier(
+        [window_features(episode, offsets) for episode in embeddings],
+        stages,
+        num_stages,
+        [window_features(episode, offsets) for episode in negatives],
+        negative_stages,
+        calibration.classifier,
+    )
+    return StageWindow(offsets, classifier)
 
 
 def stage_head_episodes(config: PretrainConfig, demos: list[Demo], plays: list[Clip]) -> tuple[list[Demo], list[Clip]]:

@@ -14,6 +14,7 @@ from ..runtime.model import METHODS, TCC_SCHEMES
 from ..runtime.reds import RedsConfig
 from ..runtime.shaping import ShapingConfig
 from ..runtime.stage_head import StageHeadConfig
+from ..runtime.stage_window import check_offsets
 from .data import AugmentConfig
 from .stage_fitting import StageClassifierConfig
 
@@ -63,8 +64,17 @@ class CalibrationConfig:
     # the subtask schemes that get a pixel stage head (each costs `stage_head.iterations`); a scheme
     # without one reads the embedding's stage classifier (reward.stage_evidence auto)
     stage_head_subtasks: tuple[int, ...] = TCC_SCHEMES
+    # the window stage classifier (runtime/stage_window.py): the frames back it reads, () for none;
+    # fitted on the same frames as the stage classifier and on `demo_negatives` rewound and as many
+    # reordered demonstrations (demo_negatives.py), which need no labels of their own
+    window_offsets: tuple[int, ...] = ()
+    demo_negatives: int = 0
 
     def __post_init__(self) -> None:
+        if self.window_offsets:
+            check_offsets(self.window_offsets)
+        if self.demo_negatives < 0:
+            raise ValueError(f"demo_negatives must be >= 0, got {self.demo_negatives}")
         if not 0.0 <= self.percentile <= 100.0:
             raise ValueError(f"percentile must be in [0, 100], got {self.percentile}")
         if self.random_episodes < 0 or not 0.0 <= self.false_fire_rate <= 1.0 or not 0.0 < self.demo_pass_rate <= 1.0:

@@ -43,6 +43,7 @@ from ..runtime.model import (
     load_model,
     save_model,
 )
+from ..runtime.stage_window import DEFAULT_OFFSETS
 from .calibrate import calibrate, supervision
 from .clips import load_clips
 from .config import PretrainConfig
@@ -327,6 +328,22 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         help="labelled clip files (inest-record-clips, inest-label-clips) the stage classifier is also fitted on",
     )
     parser.add_argument(
+        "--stage-window-offsets",
+        type=int,
+        nargs="+",
+        default=list(defaults.calibration.window_offsets),
+        metavar="FRAMES",
+        help="fit a window stage classifier on the frames this many steps back, 0 first "
+        f"(e.g. {' '.join(map(str, DEFAULT_OFFSETS))}; reward.stage_evidence window reads it)",
+    )
+    parser.add_argument(
+        "--demo-negatives",
+        type=int,
+        default=defaults.calibration.demo_negatives,
+        help="rewound and as many reordered demonstrations the window classifier is also fitted on "
+        "(no labels needed; default %(default)s)",
+    )
+    parser.add_argument(
         "--clips-raise-thresholds",
         action="store_true",
         help="the clip files' episodes also raise the completion thresholds, as random play does "
@@ -422,6 +439,8 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
             wrong_order_episodes=args.wrong_order_episodes,
             clips=tuple(args.clips),
             clips_raise_thresholds=args.clips_raise_thresholds,
+            window_offsets=tuple(args.stage_window_offsets),
+            demo_negatives=args.demo_negatives,
             stage_head_subtasks=tuple(args.stage_head_subtasks),
             stage_head=dataclasses.replace(
                 defaults.calibration.stage_head,

@@ -15,7 +15,7 @@ from .trackers import TRACKERS
 
 SHAPINGS = ("thesis", "segment")
 STAGE_SOURCES = ("tracker", "privileged")
-STAGE_EVIDENCE = ("auto", "pixels", "embedding")
+STAGE_EVIDENCE = ("auto", "pixels", "embedding", "window")
 STAGE_FILTERS = ("none", "forward")
 
 
@@ -46,8 +46,9 @@ class RewardConfig:
     stage_evidence: where the confirmed tracker reads P(stage >= j) from:
       "pixels" (the pixel stage head on the frame itself, stage_head.py, fitted on the scene
       camera by default; the embedding does not keep "block in the strip"), "embedding" (the
-      stage classifier on the frame's embedding), or "auto" (default): pixels when the model
-      has a pixel stage head for the scheme, else embedding (models fitted without one).
+      stage classifier on the frame's embedding), "window" (a classifier on the embeddings of the
+      frame and of frames before it, stage_window.py: causal evidence one frame cannot fool), or
+      "auto" (default): pixels when the model has a pixel stage head for the scheme, else embedding.
     stage_confidence: the classifier says "stage >= j" when it gives P(stage >= j) >= this.
     confirm_window: frames after the threshold test has held within which the classifier must agree.
     confirm_steps: frames in a row the classifier must agree to confirm a completion; 0: hold_steps,

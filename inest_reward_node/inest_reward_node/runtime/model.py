@@ -36,6 +36,7 @@ from .shaping import ShapingConfig
 from .stage_classifier import StageClassifier
 from .stage_head import WEIGHTS_FILE as STAGE_HEADS_FILE
 from .stage_head import StageHead
+from .stage_window import StageWindow
 
 MODEL_FORMAT = "inest-reward-model"
 MODEL_FORMAT_VERSION = 1
@@ -82,6 +83,7 @@ class SubtaskGoals:
     stage_classifier: StageClassifier | None = None  # P(true stage | embedding); None: an older model
     start_embeddings: np.ndarray | None = None  # (subtasks, D) mean embedding where each subtask starts
     stage_head: StageHead | None = None  # P(true stage | frame) from pixels; None: an older model
+    stage_window: StageWindow | None = None  # P(true stage | a causal window of embeddings); None: not fitted
 
     def to_dict(self) -> dict[str, Any]:
         data: dict[str, Any] = {
@@ -97,6 +99,8 @@ class SubtaskGoals:
             data["stage_classifier"] = self.stage_classifier.to_dict()
         if self.stage_head is not None:
             data["stage_head"] = self.stage_head.to_dict()
+        if self.stage_window is not None:
+            data["stage_window"] = self.stage_window.to_dict()
         return data
 
     @classmethod
@@ -108,6 +112,7 @@ class SubtaskGoals:
         classifier = data.get("stage_classifier")
         start_embeddings = data.get("start_embeddings")
         head = data.get("stage_head")
+        window = data.get("stage_window")
         return cls(
             goals,
             list(data["thresholds"]),
@@ -116,6 +121,7 @@ class SubtaskGoals:
             None if classifier is None else StageClassifier.from_dict(classifier),
             None if start_embeddings is None else np.asarray(start_embeddings, dtype=np.float32),
             None if head is None else StageHead.from_dict(head),  # untrained until load_model fills it
+            None if window is None else StageWindow.from_dict(window),
         )
 
     def require_start_embeddings(self) -> np.ndarray:
@@ -141,6 +147,14 @@ class SubtaskGoals:
                 f"inest-pretrain --stage-head-subtasks, or calibrated before the head existed); {RECALIBRATE_HINT}"
             )
         return self.stage_head
+
+    def require_stage_window(self) -> StageWindow:
+        if self.stage_window is None:
+            raise ModelError(
+                f"this model has no window stage classifier for its {len(self.goals)}-subtask goals (not fitted: "
+                f"inest-pretrain --stage-window-offsets); {RECALIBRATE_HINT}"
+            )
+        return self.stage_window
 
 
 @dataclass(eq=False)  # holds arrays: compare the to_dict() documents instead

@@ -147,21 +147,23 @@ class RewardScorer:
         self.start_embeddings = None
         if self.reward.uses_segments or "segments" in reads:
             self.start_embeddings = self.goals.require_start_embeddings()
-        self.classifier = self.stage_head = None
+        self.classifier = self.stage_head = self.window = None
         evidence = config.stage_evidence  # "auto": the pixel stage head if the model has one
         if evidence == "auto":
             evidence = "pixels" if self.goals.stage_head is not None else "embedding"
         if "at_least" in reads and evidence == "pixels":
             self.stage_head = self.goals.require_stage_head()
+        elif "at_least" in reads and evidence == "window":
+            self.window = self.goals.require_stage_window()
         elif "at_least" in reads:
             self.classifier = self.goals.require_stage_classifier()
-        # what the tracker reads its stage from: "pixels", "embedding", or None (no stage evidence)
-        self.evidence = "pixels" if self.stage_head else "embedding" if self.classifier else None
+        # what the tracker reads its stage from: "pixels", "embedding", "window", or None (no stage evidence)
+        self.evidence = evidence if "at_least" in reads else None
         self.camera, self.image_size = model.view, model.image_size
         # the camera the stage head reads when it is not the encoder's (StageHeadConfig.view)
         head_view = self.stage_head.config.view if self.stage_head else None
         self.stage_camera = head_view if head_view not in (None, model.view) else None
-        stage_model = self.classifier or self.stage_head
+        stage_model = self.classifier or self.stage_head or self.window
         if stage_model is not None and stage_model.num_stages != self.num_subtasks + 1:
             raise ModelError(
                 f"the stage classifier predicts {stage_model.num_stages} stages, "
@@ -173,6 +175,7 @@ class RewardScorer:
             )
         self.trackers: list[StageTracker] = [self.new_tracker() for _ in range(num_envs)]
         self.filters = [self.new_filter() for _ in range(num_envs)]
+        self.histories = [self.window.history() if self.window else None for _ in range(num_envs)]
         self.steps_since_switch = np.full(num_envs, -1)
         self.memories: list[NoveltyMemory] = []
 
@@ -208,6 +211,8 @@ class RewardScorer:
             self.trackers[index].reset()
             if self.filters[index] is not None:
                 self.filters[index].reset()
+            if self.histories[index] is not None:
+                self.histories[index].reset()
             self.steps_since_switch[index] = -1
 
     def score(
@@ -241,8 +246,11 @@ class RewardScorer:
             if stage_filter is not None and before is not None:
                 stage_filter.belief = before.belief.copy()
         self.steps_since_switch = earlier.steps_since_switch.copy()
-        if keep_memories:
+        if keep_memories:  # the same encoder: the window's embeddings stay valid too
             self.memories = earlier.memories
+            for index, history in enumerate(earlier.histories):
+                if history is not None and self.histories[index] is not None:
+                    self.histories[index].frames.extend(history.frames)
 
     def exploration_state(self) -> dict[str, np.ndarray]:
         """The novelty memories, which a resumed run must not forget."""
@@ -293,6 +301,9 @@ class RewardScorer:
             before[row], was_done[row] = tracker.current, tracker.done
             since_switch[row] = self.steps_since_switch[env]
             evidence = None if at_least is None else at_least[row]
+            if self.window is not None:
+                features = self.histories[env].push(embeddings[row])
+                evidence = self.window.classifier.at_least(features[None])[0]
             if stage_filter is not None:
                 evidence = at_least_of(stage_filter.update(exactly(evidence))[None])[0]
             change = tracker.step(

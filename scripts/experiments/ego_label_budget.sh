@@ -6,9 +6,10 @@
 # layout seeds from 5,000,000; negatives at seed offset 2,000,000), then every budget's held-out
 # report (200 validation demonstrations of runs/demos, 40 + 40 negatives) with and without it.
 # Reports go to results/robot-reward/label-budget/{selection,held-out}/<name>/ with <name>.txt.
-# `window`: with no labelled episode, the window stage classifier (offsets 0 2 4 8 16) fitted
-# without and with 200 rewound and 200 reordered demonstrations (runs/ego-labels/window-demo<N>/),
-# on the selection set, read alone and through the forward filter (labels0-window-demo<N>[-forward]).
+# `window`: the window stage classifier (offsets 0 2 4 8 16) with no labelled episode and with the
+# labelling path's 10 file-labelled ones, fitted without and with 200 rewound and 200 reordered
+# demonstrations (runs/ego-labels/labels<B>-window-demo<N>/), on the selection set, read alone and
+# through the forward filter (labels<B>-window-demo<N>[-forward]).
 #   bash scripts/experiments/ego_label_budget.sh [models|selection|held-out|window]   # default: the first three
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -24,7 +25,7 @@ declare -A FILTERS=(
   [forward-confirm1]="--scorer-option stage_filter=forward --scorer-option confirm_steps=1"
   [forward-fast-confirm1]="--scorer-option stage_filter=forward --scorer-option filter_advance=0.1 --scorer-option confirm_steps=1"
 )
-EGO=(--schemes 3 --scorer-option stage_evidence=embedding)
+EVIDENCE=(--scorer-option stage_evidence=embedding)  # where the stage is read; the window stage sets its own
 stages=("$@")
 [ ${#stages[@]} -gt 0 ] || stages=(models selection held-out)
 
@@ -33,7 +34,7 @@ report() {  # NAME MODEL DATASET [options...]
   shift 3
   [ -f "$name/report.json" ] && return
   rm -rf "$name"
-  "$BIN/inest-reward-quality" "$model" "$dataset" --out "$name" "${EGO[@]}" "$@" >"$name.txt"
+  "$BIN/inest-reward-quality" "$model" "$dataset" --out "$name" --schemes 3 "${EVIDENCE[@]}" "$@" >"$name.txt"
 }
 
 for stage in "${stages[@]}"; do
@@ -67,18 +68,24 @@ for stage in "${stages[@]}"; do
       done ;;
     window)
       mkdir -p "$OUT/selection"
-      for count in 0 200; do
-        model=runs/ego-labels/window-demo$count/model
-        [ -f "$model/model.json" ] || {
-          rm -rf "runs/ego-labels/window-demo$count"
-          "$BIN/inest-pretrain" runs/demos --out "runs/ego-labels/window-demo$count" --recalibrate results/long-horizon/reward-model \
-            --random-episodes 0 --wrong-order-episodes 0 --stage-head-iterations 0 --threads 1 \
-            --stage-window-offsets 0 2 4 8 16 --demo-negatives "$count"
-        }
-        report "$OUT/selection/labels0-window-demo$count" "$model" runs/demos-select --negative-seed-offset 2000000 \
-          --scorer-option stage_evidence=window
-        report "$OUT/selection/labels0-window-demo$count-forward" "$model" runs/demos-select --negative-seed-offset 2000000 \
-          --scorer-option stage_evidence=window --scorer-option stage_filter=forward
+      EVIDENCE=(--scorer-option stage_evidence=window)
+      # 10: the labelling path's file-labelled episodes (labelling_path_timing.sh negatives), raising the thresholds
+      declare -A LABELLED=([0]="" [10]="--clips runs/labelling-path/negatives/labelled.npz --clips-raise-thresholds")
+      for budget in 0 10; do
+        for count in 0 200; do
+          name=labels$budget-window-demo$count
+          model=runs/ego-labels/$name/model
+          [ -f "$model/model.json" ] || {
+            rm -rf "runs/ego-labels/$name"
+            # shellcheck disable=SC2086  # a flag list
+            "$BIN/inest-pretrain" runs/demos --out "runs/ego-labels/$name" --recalibrate results/long-horizon/reward-model \
+              --random-episodes 0 --wrong-order-episodes 0 --stage-head-iterations 0 --threads 1 \
+              --stage-window-offsets 0 2 4 8 16 --demo-negatives "$count" ${LABELLED[$budget]}
+          }
+          report "$OUT/selection/$name" "$model" runs/demos-select --negative-seed-offset 2000000
+          report "$OUT/selection/$name-forward" "$model" runs/demos-select --negative-seed-offset 2000000 \
+            --scorer-option stage_filter=forward
+        done
       done ;;
     *) echo "ego_label_budget: unknown stage $stage (models, selection, held-out, window)" >&2; exit 2 ;;
   esac

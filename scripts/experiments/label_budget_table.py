@@ -6,6 +6,7 @@ the seconds of each step before the same figures.
 
     python scripts/experiments/label_budget_table.py results/robot-reward/label-budget/selection
     python scripts/experiments/label_budget_table.py results/robot-reward/labelling-path
+    python scripts/experiments/label_budget_table.py results/robot-reward/exploit-check
 """
 
 from __future__ import annotations
@@ -25,17 +26,24 @@ FIGURES = (
     "shaping ρ red / blue / yellow | missed | false: random | false: wrong order "  # noqa: RUF001
     "| not early: random | not early: wrong order"
 )
+CLIPS = " | false: the policy's rollouts"  # reports made with --clips
 TIMED_STEPS = ("record", "template", "label", "recalibrate", "check")
+
+
+def has_clips(report: Path) -> bool:
+    return "clips" in json.loads(report.read_text())["schemes"]["3"]["per_subtask"][0]["false_completion_rate"]
 
 
 def figures(report: Path) -> list[str]:
     subtasks = json.loads(report.read_text())["schemes"]["3"]["per_subtask"]
     rho = triple([sub["spearman_shaping_within"]["median"] for sub in subtasks], ".2f")
-    missed = triple([sub["miss_rate"] for sub in subtasks], "g", 100)
+    missed = triple([sub["miss_rate"] for sub in subtasks], ".3g", 100)
     cells = [rho, f"{missed} %"]
     for rates in ("false_completion_rate", "false_not_early_rate"):
         for kind in ("random", "wrong_order"):
-            cells.append(f"{triple([sub[rates][kind] for sub in subtasks], 'g', 100)} %")
+            cells.append(f"{triple([sub[rates][kind] for sub in subtasks], '.3g', 100)} %")
+    if "clips" in subtasks[0]["false_completion_rate"]:
+        cells.append(f"{triple([sub['false_completion_rate']['clips'] for sub in subtasks], '.3g', 100)} %")
     return cells
 
 
@@ -60,8 +68,9 @@ def main(folder: str) -> None:
         for report in timed:
             print(path_row(report))
         return
-    print(f"| labelled episodes | stage evidence | {FIGURES} |")
-    print("|---|---|---|---|---|---|---|---|")
+    clips = all(has_clips(report) for report in reports)
+    print(f"| labelled episodes | stage evidence | {FIGURES}{CLIPS if clips else ''} |")
+    print("|---|---|---|---|---|---|---|---|" + ("---|" if clips else ""))
     for report in sorted(reports, key=lambda p: (BUDGETS[p.parent.name.split("-")[0]], p)):
         print(budget_row(report))
 

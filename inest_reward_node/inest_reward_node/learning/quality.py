@@ -481,6 +481,15 @@ class ScorerOptionError(ValueError):
 OPTION_DATACLASSES = {"config": RewardConfig, "intrinsic": IntrinsicConfig}  # RewardScorer parameters
 
 
+def described_model(model: RewardModel) -> dict[str, Any]:
+    """The model's description for a report: its metadata with each scheme's thresholds, not the
+    goals and stage classifiers fitted with them (model.json holds those; a report stays small)."""
+    described = model.metadata.to_dict()
+    subtasks = described["subtasks"]
+    described["subtasks"] = {scheme: {"thresholds": goals["thresholds"]} for scheme, goals in subtasks.items()}
+    return described
+
+
 def parse_scorer_option(text: str) -> tuple[str, Any]:
     """'key=value' -> (key, value), the value read as JSON when it parses (3, 0.5, true, "x", {...}), else
     kept as a string."""
@@ -646,7 +655,7 @@ def evaluate(
         kind: [model.embed(episode.frames) for episode in episodes] for kind, episodes in negatives.items()
     }
     report: dict[str, Any] = {
-        "model": model.metadata.to_dict(),
+        "model": described_model(model),
         "supervision": recorded_supervision(model.metadata),
         "normalisation": __doc__,
         "scorer_options": json_ready(scorer_options),

@@ -391,7 +391,8 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     parser.add_argument(
         "--stage-evidence",
         choices=STAGE_EVIDENCE,
-        help="what the confirmed tracker reads: auto (the pixel stage head if the model has one), pixels, embedding",
+        help="what the confirmed tracker reads: auto (the pixel stage head if the model has one), pixels, "
+        "embedding, window (a classifier over the frame and frames before it)",
     )
     parser.add_argument(
         "--confirm-steps", type=int, help="frames the confirmed tracker's stage evidence must agree (0: hold_steps)"

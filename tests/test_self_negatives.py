@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from inest_agent_node.self_negatives import CONFIRM_WITHIN, REFIT_MODEL_DIR, SelfNegatives
 from inest_agent_node.train import Trainer
 from inest_reward_node.runtime.config import RewardConfig
@@ -40,6 +41,12 @@ def test_a_claim_the_tracker_never_confirms_becomes_a_negative_one_it_confirms_d
     model = load_model(tiny_tcc_run[1] / "model")
     scorer = RewardScorer(model, 3, config=RewardConfig(stage_evidence="embedding"))
     negatives = SelfNegatives(scorer, tiny_demos, num_envs=1)
+    calibration = model.metadata.calibration  # its labelled episodes are refitted on too, not dropped
+    assert len(negatives.labelled_stages) == calibration["random_episodes"] + calibration["wrong_order_episodes"] > 0
+    calibration["clips"] = ["nowhere.npz"]
+    with pytest.raises(ValueError, match=r"calibrated on the clip file nowhere\.npz, which is not here"):
+        SelfNegatives(scorer, tiny_demos, num_envs=1)
+    calibration["clips"] = []
     # frame 1 claims red (confirmed at frame 3); frame 5 claims blue, never confirmed
     claims = [0, 1, 1, 1, 1, 2] + [2] * (CONFIRM_WITHIN + 2)
     stages = [0, 0, 0, 1, 1, 1] + [1] * (CONFIRM_WITHIN + 2)

@@ -7,7 +7,9 @@ tracker, reading the stage over time (its confirmation, and the forward filter w
 the policy reaches otherwise than the demonstrations reach stage c + 1: it is kept as a
 negative labelled c, as PROGRESSOR and Rank2Reward push down the agent's frames where they
 claim progress the demonstrations make differently. Every `refit_every` steps the classifier is
-fitted again on a sample of the demonstrations and these frames, and the training and
+fitted again on a sample of the demonstrations, the labelled negative episodes the model was
+calibrated on (its random and wrong-order play, made again from their seeds, and its clip
+files: a person's labels are not thrown away) and these frames, and the training and
 evaluation rewards read it from the next step on; the model it makes is saved in
 RUN/reward-model/, which `inest-evaluate` then scores with. Embedding stage evidence only (the
 pixel stage head takes minutes to fit).
@@ -21,9 +23,10 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+from inest_reward_node.learning.clips import Clip, load_clips, random_play, wrong_order_play
 from inest_reward_node.learning.data import load_demos
 from inest_reward_node.learning.stage_fitting import StageClassifierConfig, fit_stage_classifier
-from inest_reward_node.learning.task_stages import demo_stages
+from inest_reward_node.learning.task_stages import demo_stages, true_stages
 from inest_reward_node.runtime.model import RewardModel, save_model
 from inest_reward_node.runtime.rewards import RewardParts, RewardScorer
 from inest_reward_node.runtime.stage_classifier import StageClassifier
@@ -54,6 +57,9 @@ class SelfNegatives:
         demos = load_demos(dataset, "train", model.view, model.image_size, DEMOS, progress_bar=False)
         self.demo_embeddings = [model.embed(demo.frames) for demo in demos]
         self.demo_stages = [demo_stages(demo.progress, demo.labels[scheme], scheme) for demo in demos]
+        labelled = calibration_negatives(model)
+        self.labelled_embeddings = [model.embed(clip.frames) for clip in labelled]
+        self.labelled_stages = [true_stages(clip.progress, clip.held, scheme) for clip in labelled]
         self.waiting: list[deque[Claim]] = [deque() for _ in range(num_envs)]
         self.frames = [0] * num_envs  # frames seen per environment in its episode
         self.negatives: deque[tuple[np.ndarray, int]] = deque(maxlen=CAPACITY)
@@ -86,8 +92,8 @@ class SelfNegatives:
             self.demo_embeddings,
             self.demo_stages,
             self.scorer.num_subtasks + 1,
-            [embeddings],
-            [stages],
+            [*self.labelled_embeddings, embeddings],
+            [*self.labelled_stages, stages],
             StageClassifierConfig(seed=self.refits),
         )
         for reader in readers:
@@ -95,6 +101,18 @@ class SelfNegatives:
         self.refits += 1
         save_refitted(self.scorer.model, self.scorer.num_subtasks, classifier, len(stages), run_dir / REFIT_MODEL_DIR)
         return len(stages)
+
+
+def calibration_negatives(model: RewardModel) -> list[Clip]:
+    """The labelled negative episodes the model's calibration was fitted on, as it recorded them."""
+    calibration, size = model.metadata.calibration, model.image_size
+    clips = random_play(model.view, size, calibration.get("random_episodes", 0))
+    clips += wrong_order_play(model.view, size, calibration.get("wrong_order_episodes", 0))
+    for path in calibration.get("clips", []):
+        if not Path(path).is_file():
+            raise ValueError(f"the model was calibrated on the clip file {path}, which is not here to refit with")
+        clips += load_clips(path, model.view, size)
+    return clips
 
 
 def save_refitted(model: RewardModel, scheme: int, classifier: StageClassifier, negatives: int, folder: Path) -> None:

@@ -70,7 +70,7 @@ for stage in "${stages[@]}"; do
       mkdir -p "$OUT/selection"
       EVIDENCE=(--scorer-option stage_evidence=window)
       # 10: the labelling path's file-labelled episodes (labelling_path_timing.sh negatives), raising the thresholds
-      declare -A LABELLED=([0]="" [10]="--clips runs/labelling-path/negatives/labelled.npz --clips-raise-thresholds")
+      declare -A LABELLED=([0]="" [10]="--clips results/robot-reward/labelling-path/negatives/labelled.npz --clips-raise-thresholds")
       for budget in 0 10; do
         for count in 0 200; do
           name=labels$budget-window-demo$count

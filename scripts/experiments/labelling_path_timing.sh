@@ -24,6 +24,8 @@ if [ "${RAISE_THRESHOLDS:-1}" = 0 ]; then RAISE=() && NAME=$NAME-classifier-only
 WORK=runs/labelling-path/$NAME
 OUT=results/robot-reward/labelling-path/$NAME
 rm -rf "$WORK" && mkdir -p "$WORK" "$OUT"
+# the budget's labelled episodes are committed beside their results (the agent check's model reads them)
+LABELLED=$([ "$NAME" = negatives ] && echo "$OUT/labelled.npz" || echo "$WORK/labelled.npz")
 LOAD=$(cut -d' ' -f1 /proc/loadavg)  # other work on the machine at the start, as its load average
 STEPS=()
 
@@ -67,9 +69,9 @@ with np.load(sys.argv[1]) as data:
         rows += [f"{episode},{frame},{int(progress[frame])}" for frame in changes]
 open(sys.argv[2], "w").write("\n".join(rows) + "\n")
 EOF
-timed label "$BIN/inest-label-clips" "$WORK/rollouts.npz" "$WORK/labels.csv" --out "$WORK/labelled.npz"
+timed label "$BIN/inest-label-clips" "$WORK/rollouts.npz" "$WORK/labels.csv" --out "$LABELLED"
 timed recalibrate "$BIN/inest-pretrain" runs/demos --out "$WORK/refit" --recalibrate results/long-horizon/reward-model \
-  --random-episodes 0 --wrong-order-episodes 0 --clips "$WORK/labelled.npz" "${RAISE[@]}" \
+  --random-episodes 0 --wrong-order-episodes 0 --clips "$LABELLED" "${RAISE[@]}" \
   --stage-head-iterations 0 --threads 1
 timed check "$BIN/inest-reward-quality" "$WORK/refit/model" runs/demos --out "$WORK/quality" --schemes 3 \
   --scorer-option stage_evidence=embedding --scorer-option stage_filter=forward

@@ -15,7 +15,7 @@ import json
 import sys
 from pathlib import Path
 
-BUDGETS = {"labels0": 0, "labels10": 10, "labels50": 50}
+BUDGETS = {"labels0": 0, "labels10": 10, "labels20": 20, "labels50": 50}
 
 
 def triple(values: list[float], spec: str, scale: float = 1.0) -> str:

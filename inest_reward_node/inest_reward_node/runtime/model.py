@@ -124,37 +124,38 @@ class SubtaskGoals:
             None if window is None else StageWindow.from_dict(window),
         )
 
+    def required(self, value: Any, missing: str) -> Any:
+        """`value`, or a ModelError saying what the model lacks for its goals and how to refit it."""
+        if value is None:
+            raise ModelError(f"this model has no {missing.format(subtasks=len(self.goals))}; {RECALIBRATE_HINT}")
+        return value
+
     def require_start_embeddings(self) -> np.ndarray:
-        if self.start_embeddings is None:
-            raise ModelError(
-                f"this model has no per-subtask start embeddings for its {len(self.goals)}-subtask goals "
-                f"(calibrated before segment shaping and reopening existed); {RECALIBRATE_HINT}"
-            )
-        return self.start_embeddings
+        return self.required(
+            self.start_embeddings,
+            "per-subtask start embeddings for its {subtasks}-subtask goals "
+            "(calibrated before segment shaping and reopening existed)",
+        )
 
     def require_stage_classifier(self) -> StageClassifier:
-        if self.stage_classifier is None:
-            raise ModelError(
-                f"this model has no stage classifier for its {len(self.goals)}-subtask goals "
-                f"(calibrated before stage classifiers existed); {RECALIBRATE_HINT}"
-            )
-        return self.stage_classifier
+        return self.required(
+            self.stage_classifier,
+            "stage classifier for its {subtasks}-subtask goals (calibrated before stage classifiers existed)",
+        )
 
     def require_stage_head(self) -> StageHead:
-        if self.stage_head is None:
-            raise ModelError(
-                f"this model has no pixel stage head for its {len(self.goals)}-subtask goals (not fitted: "
-                f"inest-pretrain --stage-head-subtasks, or calibrated before the head existed); {RECALIBRATE_HINT}"
-            )
-        return self.stage_head
+        return self.required(
+            self.stage_head,
+            "pixel stage head for its {subtasks}-subtask goals (not fitted: "
+            "inest-pretrain --stage-head-subtasks, or calibrated before the head existed)",
+        )
 
     def require_stage_window(self) -> StageWindow:
-        if self.stage_window is None:
-            raise ModelError(
-                f"this model has no window stage classifier for its {len(self.goals)}-subtask goals (not fitted: "
-                f"inest-pretrain --stage-window-offsets); {RECALIBRATE_HINT}"
-            )
-        return self.stage_window
+        return self.required(
+            self.stage_window,
+            "window stage classifier for its {subtasks}-subtask goals "
+            "(not fitted: inest-pretrain --stage-window-offsets)",
+        )
 
 
 @dataclass(eq=False)  # holds arrays: compare the to_dict() documents instead

@@ -7,7 +7,8 @@ evaluation of the same step has just added):
 - ProgressCallback: the tqdm bar (steps, and after each evaluation its score and steps/s);
 - RewardDiagnosticsCallback: every step's infos into diagnostics.RewardDiagnostics; every
   `eval_every` steps their summary into `trainer.diagnostics` and TensorBoard `diagnostics/*`;
-- RefitCallback (with `refit_every`): the stage classifier refitted on the agent's own frames;
+- RefitCallback (with `refit_every` or `label_at`): the stage classifier refitted on the agent's
+  own frames;
 - EvaluationCallback: every `eval_every` steps the deterministic policy on `eval_episodes`
   evaluation episodes, into `trainer.history` and TensorBoard `eval/score`, `eval/success_rate`;
 - CheckpointCallback: every `checkpoint_every` steps or `checkpoint_minutes`, whichever comes
@@ -30,6 +31,7 @@ from tqdm import tqdm
 from .config import TrainConfig
 from .diagnostics import RewardDiagnostics
 from .evaluate import EvalResult
+from .stage_refit import StageRefit
 
 
 class Trainer(Protocol):
@@ -44,6 +46,8 @@ class Trainer(Protocol):
     def evaluate(self, episodes: int) -> EvalResult: ...
 
     def save_checkpoint(self) -> int: ...
+
+    stage_refit: StageRefit | None
 
     def refit_stage_classifier(self) -> None: ...
 
@@ -128,16 +132,20 @@ class EvaluationCallback(BaseCallback):
 
 
 class RefitCallback(BaseCallback):
-    """Every `refit_every` steps, the stage classifier refitted on the agent's own frames
-    (self_negatives.py); before the evaluation of the same step, which then reads it."""
+    """The stage classifier refitted on the agent's own frames (stage_refit.py): every
+    `refit_every` steps, and as soon as a labelling round's episodes are all labelled; before
+    the evaluation of the same step, which then reads it."""
 
     def __init__(self, trainer: Trainer) -> None:
         super().__init__()
         self.trainer = trainer
 
     def _on_step(self) -> bool:
-        config = self.trainer.config
-        if due(self.num_timesteps, config.refit_every, config.num_envs):
+        config, labelling = self.trainer.config, self.trainer.stage_refit.labelling
+        if labelling is not None:
+            labelling.open_rounds(self.num_timesteps)
+        periodic = config.refit_every and due(self.num_timesteps, config.refit_every, config.num_envs)
+        if periodic or (labelling is not None and labelling.round_complete()):
             self.trainer.refit_stage_classifier()
         return True
 
@@ -166,5 +174,5 @@ def training_callbacks(trainer: Trainer) -> CallbackList:
     """Progress, reward diagnostics, evaluation and checkpoints, in that order (see the module docstring)."""
     progress = ProgressCallback(trainer)
     evaluation = EvaluationCallback(trainer, progress)
-    refit = [RefitCallback(trainer)] if trainer.config.refit_every else []
+    refit = [RefitCallback(trainer)] if trainer.stage_refit is not None else []
     return CallbackList([progress, RewardDiagnosticsCallback(trainer), *refit, evaluation, CheckpointCallback(trainer)])

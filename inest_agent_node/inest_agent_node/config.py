@@ -141,6 +141,11 @@ class TrainConfig:
     # `refit_demos`' demonstrations and the agent's own unconfirmed stage claims; 0: off
     refit_every: int = 0
     refit_demos: str | None = None  # the demonstration dataset the refit keeps the classifier anchored to
+    # labelled rollouts (labelled_rollouts.py): at each of these steps `label_episodes` of the agent's
+    # next episodes in which the reward claimed a stage are labelled (the simulator standing in for
+    # a person) and the stage classifier is refitted with them; (): none
+    label_at: tuple[int, ...] = ()
+    label_episodes: int = 5
     sac: SacConfig = field(default_factory=SacConfig)
 
     def __post_init__(self) -> None:
@@ -182,8 +187,13 @@ class TrainConfig:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
         if self.refit_every < 0:
             raise ValueError(f"refit_every must be >= 0 (0: no refit), got {self.refit_every}")
-        if self.refit_every and (self.reward != "inest" or not self.refit_demos):
+        if (self.refit_every or self.label_at) and (self.reward != "inest" or not self.refit_demos):
             raise ValueError("refitting the stage classifier needs the inest reward and refit_demos (a dataset)")
+        steps = list(self.label_at)
+        if any(type(step) is not int or step <= 0 for step in steps) or steps != sorted(set(steps)):
+            raise ValueError(f"label_at must list distinct positive steps in ascending order, got {steps}")
+        if self.label_episodes <= 0:
+            raise ValueError(f"label_episodes must be positive, got {self.label_episodes}")
         if not self.checkpoint_minutes > 0:
             raise ValueError(f"checkpoint_minutes must be positive, got {self.checkpoint_minutes}")
         if self.seed < 0:
@@ -200,6 +210,7 @@ class TrainConfig:
     def to_dict(self) -> dict[str, Any]:
         data = asdict(self)
         data["sac"]["net_arch"] = list(self.sac.net_arch)
+        data["label_at"] = list(self.label_at)
         return data
 
     @classmethod
@@ -210,6 +221,8 @@ class TrainConfig:
             values["intrinsic"] = IntrinsicConfig(mode="none")  # the bonus belongs to the inest reward
         if isinstance(values.get("sac"), dict) and "net_arch" in values["sac"]:
             values["sac"] = {**values["sac"], "net_arch": tuple(values["sac"]["net_arch"])}
+        if isinstance(values.get("label_at"), list):
+            values["label_at"] = tuple(values["label_at"])
         try:
             values["intrinsic"] = nested(
                 IntrinsicConfig, values.get("intrinsic", IntrinsicConfig()), "intrinsic setting(s)"
@@ -234,7 +247,7 @@ def setting_defaults() -> dict[str, Any]:
     written is taken to be its default (a resumed run, a continued grid cell). New settings
     default to what runs did before them, so this changes nothing a run was trained with."""
     plain = {f.name: f.default for f in fields(TrainConfig) if f.default is not MISSING}
-    return {**plain, "learned_reward": RewardConfig().to_dict(), "sac": asdict(SacConfig())}
+    return {**plain, "label_at": [], "learned_reward": RewardConfig().to_dict(), "sac": asdict(SacConfig())}
 
 
 # inest-train flags an experiment grid sets for every cell itself (experiments.py); `model` has its own key

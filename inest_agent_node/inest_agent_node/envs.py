@@ -112,8 +112,8 @@ class RewardVecEnv(VecEnvWrapper):
         self.waiting: list[WaitingStep] = []
         self.scored: deque[np.ndarray] = deque()  # learned rewards not yet taken, oldest first
         self.deferred_rewards_accepted = False
-        # called with (environment of each row, the rows' RewardParts, episode ends) after each scoring
-        self.scored_hook: Callable[[np.ndarray, RewardParts, np.ndarray], None] | None = None
+        # called with the scored rows' Steps and RewardParts after each scoring
+        self.scored_hook: Callable[[Steps, RewardParts], None] | None = None
 
     def accept_deferred_rewards(self) -> None:
         """Called by the one consumer that holds transitions until take_rewards() (RewardBatchingMixin)."""
@@ -166,20 +166,21 @@ class RewardVecEnv(VecEnvWrapper):
         count, waiting, reward = self.num_envs, self.waiting, self.reward
         states = np.concatenate([step.states for step in waiting])
         envs, ends = np.tile(np.arange(count), len(waiting)), np.concatenate([step.dones for step in waiting])
+        steps = Steps(
+            envs=envs,
+            rounds=np.repeat(np.arange(len(waiting)), count),
+            episode_ends=ends,
+            states=states,
+            known_stages=privileged_stages(states, reward.num_subtasks) if reward.needs_known_stages else None,
+            env_rewards=np.concatenate([step.env_rewards for step in waiting]),
+        )
         scored = reward.score(
             None if reward.camera is None else np.concatenate([step.frames for step in waiting]),
             None if reward.stage_camera is None else np.concatenate([step.stage_frames for step in waiting]),
-            Steps(
-                envs=envs,
-                rounds=np.repeat(np.arange(len(waiting)), count),
-                episode_ends=ends,
-                states=states,
-                known_stages=privileged_stages(states, reward.num_subtasks) if reward.needs_known_stages else None,
-                env_rewards=np.concatenate([step.env_rewards for step in waiting]),
-            ),
+            steps,
         )
         if self.scored_hook is not None:
-            self.scored_hook(envs, scored, ends)
+            self.scored_hook(steps, scored)
         for position, step in enumerate(waiting):
             parts = scored.select(slice(position * count, (position + 1) * count))
             if self.steps % self.record_every == 0 and parts.embeddings.shape[1]:

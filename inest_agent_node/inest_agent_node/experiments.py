@@ -56,8 +56,9 @@ from inest_reward_node.runtime.model import MODEL_FILE, WEIGHTS_FILE
 from .config import SPEED_ONLY_SETTINGS, GridConfig, ReferenceResult, setting_defaults
 from .diagnostics import EARLY_CLAIM_STEPS
 from .grid_quality import QUALITY_DIR, quality_table
+from .labelled_rollouts import LABELLED_FILE
 from .policy_export import ACTOR_FILE, POLICY_DIR, POLICY_FILE
-from .self_negatives import REFIT_MODEL_DIR
+from .stage_refit import REFIT_MODEL_DIR
 from .summary import CURVES_FILE, SUMMARY_FILE, plot_curves, read_run, summarise, write_summary
 from .train import CHECKPOINT_DIR, DIAGNOSTICS_FILE, HISTORY_FILE, RESULTS_FILE, continuation_flags, parse_args
 
@@ -67,9 +68,10 @@ REPORT_FILE = "report.md"
 # trains its learning curve and reward diagnostics so far (from its checkpoint, export_results)
 REPORT_FILES = (REPORT_FILE, SUMMARY_FILE, CURVES_FILE, GRID_FILE)
 # a finished run's files an export keeps, at the same paths: with its exported policy and the
-# stage classifier it refitted, `inest-evaluate` re-evaluates the copy
+# stage classifier it refitted, `inest-evaluate` re-evaluates the copy (and the episodes it labelled
+# in the loop say what the refit read)
 RUN_FILES = (
-    *(CONFIG_FILE, RESULTS_FILE, "learning_curve.png", "coverage.png"),
+    *(CONFIG_FILE, RESULTS_FILE, "learning_curve.png", "coverage.png", LABELLED_FILE),
     *(f"{POLICY_DIR}/{name}" for name in (ACTOR_FILE, POLICY_FILE)),
     *(f"{REFIT_MODEL_DIR}/{name}" for name in (MODEL_FILE, WEIGHTS_FILE)),
 )

@@ -22,7 +22,7 @@ from inest_reward_node.runtime.model import ModelError
 from .envs import build_env
 from .evaluate import EvalResult, evaluate_vec_env, format_table, layouts
 from .policy_export import POLICY_DIR, load_policy
-from .self_negatives import REFIT_MODEL_DIR
+from .stage_refit import REFIT_MODEL_DIR
 
 EVALUATIONS_DIR = "evaluations"
 MAX_ENVS = 10  # episodes played side by side (one encoder pass for all their frames)
@@ -36,7 +36,7 @@ def run_home(run: Path) -> Path:
 def reevaluate(run: Path, spec: str, episodes: int) -> tuple[EvalResult, dict]:
     """The run's exported policy on the layouts `spec` (evaluate.layouts, of the run's seed)."""
     policy = load_policy(run)
-    refitted = run_home(run) / REFIT_MODEL_DIR  # the stage classifier the run refitted last (self_negatives.py)
+    refitted = run_home(run) / REFIT_MODEL_DIR  # the stage classifier the run refitted last (stage_refit.py)
     config = dataclasses.replace(policy.config, model=str(refitted)) if refitted.exists() else policy.config
     on = layouts(spec, config.seed)
     on.check(episodes)

@@ -34,11 +34,16 @@ CURVES_FILE = "learning_curves.png"
 
 
 def reward_supervision(config: dict[str, Any]) -> dict[str, Any]:
-    """What the run's reward was fitted on: its labelled negative episodes and the cameras it
-    reads (the reward model's supervision record); the oracle reads the simulator."""
+    """What the run's reward was fitted on: its labelled negative episodes (the reward model's,
+    and the agent's own the run labels in the loop) and the cameras it reads (the model's
+    supervision record); the oracle reads the simulator."""
     if config.get("reward", "env") == "env" or not config.get("model"):
         return {"labelled_episodes": None, "cameras": ["simulator state"]}
-    return model_supervision(config["model"])
+    record = model_supervision(config["model"])
+    in_loop = config.get("label_episodes", 0) * len(config.get("label_at", []))
+    if record["labelled_episodes"] is None or not in_loop:
+        return record
+    return {**record, "labelled_episodes": record["labelled_episodes"] + in_loop}
 
 
 @functools.cache

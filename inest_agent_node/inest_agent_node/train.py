@@ -39,6 +39,7 @@ from .callbacks import training_callbacks
 from .config import REWARDS, SPEED_ONLY_SETTINGS, TrainConfig, setting_defaults
 from .envs import ConcurrentUpdatesVecEnv, RewardVecEnv, build_env
 from .evaluate import TEST, VALIDATION, EvalResult, Layouts, evaluate_vec_env, format_table, plot_learning_curve
+from .labelled_rollouts import RolloutLabelling
 from .learners import (
     LEARNERS,
     OverlappedUpdatesMixin,
@@ -49,7 +50,8 @@ from .learners import (
 )
 from .policy_export import EXPORTABLE, POLICY_DIR, export_policy, exported
 from .replay_store import load_replay_buffer, save_replay_buffer
-from .self_negatives import REFIT_MODEL_DIR, SelfNegatives
+from .self_negatives import SelfNegatives
+from .stage_refit import REFIT_MODEL_DIR, StageRefit
 
 CHECKPOINT_DIR = "checkpoint"
 RESULTS_FILE = "results.json"
@@ -115,11 +117,9 @@ class Trainer:
             self.env = ConcurrentUpdatesVecEnv(self.env)  # the updates run while the in-process envs step
         self.reward_env: RewardVecEnv | None = unwrap_vec_wrapper(self.env, RewardVecEnv)
         self.eval_env = build_env(config, min(EVAL_ENVS, config.final_eval_episodes), evaluation=True)
-        self.refits: list[list[int]] = []  # [steps, negatives] of each stage classifier refit
-        self.self_negatives = None
-        if config.refit_every:
-            self.self_negatives = SelfNegatives(self.reward_env.reward, config.refit_demos, config.num_envs)
-            self.reward_env.scored_hook = self.self_negatives.observe
+        # [steps, self negative frames, labelled episodes] of each stage classifier refit
+        self.refits: list[list[int]] = []
+        self.stage_refit = self.build_stage_refit()
         self.check_run_dir(resume or start_over, start_over)  # written only once the models and envs load
         if config.learner.startswith("sbx"):
             configure_jax_threads(config.threads)
@@ -143,10 +143,12 @@ class Trainer:
             )
             if self.reward_env is not None and (checkpoint / EXPLORATION_FILE).exists():
                 self.reward_env.restore_exploration(read_run_file(checkpoint / EXPLORATION_FILE, read_npz))
-            if self.self_negatives is not None and (self.run_dir / REFIT_MODEL_DIR).exists():
+            if self.stage_refit is not None and (self.run_dir / REFIT_MODEL_DIR).exists():
                 refitted = load_model(self.run_dir / REFIT_MODEL_DIR).goals(self.reward_env.reward.num_subtasks)
                 for reader in self.stage_readers():
-                    reader.classifier = refitted.require_stage_classifier()  # the negatives start over
+                    reader.classifier = refitted.require_stage_classifier()  # the self negatives start over
+                if self.stage_refit.labelling is not None:
+                    self.stage_refit.labelling.restore(self.run_dir)  # a person's labels do not
         else:
             self.model = algorithm(
                 "MlpPolicy",
@@ -159,14 +161,29 @@ class Trainer:
         if overlap_updates:
             waiting_hook_owner(self.env).while_waiting = self.model.run_pending_updates
 
+    def build_stage_refit(self) -> StageRefit | None:
+        """The stage classifier's refit during training, fed every scored step: with self negatives
+        (`refit_every`), labelled rollouts (`label_at`), both, or None."""
+        config = self.config
+        if not config.refit_every and not config.label_at:
+            return None
+        scorer = self.reward_env.reward
+        labelling = None
+        if config.label_at:
+            labelling = RolloutLabelling(scorer.num_subtasks, config.num_envs, config.label_at, config.label_episodes)
+        self_negatives = SelfNegatives(scorer, config.num_envs) if config.refit_every else None
+        refit = StageRefit(scorer, config.refit_demos, self_negatives, labelling)
+        self.reward_env.scored_hook = refit.observe
+        return refit
+
     def stage_readers(self) -> list:
         """The training and evaluation rewards, which read one refitted stage classifier."""
         return [self.reward_env.reward, unwrap_vec_wrapper(self.eval_env, RewardVecEnv).reward]
 
     def refit_stage_classifier(self) -> None:
-        """Self negatives: the stage classifier refitted on the agent's unconfirmed claims so far."""
-        negatives = self.self_negatives.refit(self.run_dir, self.stage_readers())
-        self.refits.append([int(self.model.num_timesteps), negatives])
+        """The stage classifier refitted on the agent's own frames so far (stage_refit.py)."""
+        frames = self.stage_refit.refit(self.run_dir, self.stage_readers())
+        self.refits.append([int(self.model.num_timesteps), frames.self_negatives, frames.labelled_episodes])
 
     def evaluate(self, episodes: int, on: Layouts = VALIDATION) -> EvalResult:
         """The deterministic policy on the layouts `on` (the periodic evaluations': validation),
@@ -349,6 +366,7 @@ INTEGER_FLAGS = (
     "seed",
     "threads",
     "refit_every",
+    "label_episodes",
 )
 
 
@@ -371,7 +389,8 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     parser.add_argument("--reward", choices=REWARDS)
     parser.add_argument("--model", help="reward model folder (a pretraining run's model/)")
     parser.add_argument(
-        "--refit-demos", help="with --refit-every: the dataset whose demonstrations anchor the refitted classifier"
+        "--refit-demos",
+        help="with --refit-every or --label-at: the dataset whose demonstrations anchor the refitted classifier",
     )
     parser.add_argument("--subtasks", type=int, choices=TCC_SCHEMES)
     parser.add_argument("--intrinsic", choices=INTRINSIC_MODES)
@@ -381,7 +400,12 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         help="the novelty bonus's weight; twice it for the steps after a subtask switch (thesis: 0.2, 0.4)",
     )
     parser.add_argument("--view", choices=("ego", "allo"))
-    parser.add_argument("--observation", choices=STATE_OBSERVATIONS, help="stage (default) or the bare state")
+    parser.add_argument(
+        "--observation",
+        choices=STATE_OBSERVATIONS,
+        help="robot (default): what a robot senses and the reward's stage; stage: the same on the whole "
+        "simulator state, score included; state: the bare state vector",
+    )
     parser.add_argument("--learner", choices=tuple(LEARNERS), help="off-policy learner (learners.py)")
     parser.add_argument("--shaping", choices=SHAPINGS, help="learned reward shaping (runtime.config.RewardConfig)")
     parser.add_argument("--tracker", choices=TRACKERS, help="learned reward subtask tracker")
@@ -415,6 +439,14 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     for name in INTEGER_FLAGS:
         parser.add_argument(f"--{name.replace('_', '-')}", type=int)
     parser.add_argument(
+        "--label-at",
+        type=int,
+        nargs="+",
+        metavar="STEP",
+        help="steps at which --label-episodes of the agent's episodes are labelled and refitted on "
+        "(needs --refit-demos)",
+    )
+    parser.add_argument(
         "--gradient-steps", type=int, help="gradient steps per vector step (sac.gradient_steps; the replay ratio)"
     )
     args = parser.parse_args(argv)
@@ -437,6 +469,8 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         )
         if getattr(args, name) is not None
     }
+    if args.label_at is not None:
+        overrides["label_at"] = tuple(args.label_at)
     if learned:
         overrides["learned_reward"] = learned
     if args.gradient_steps is not None:

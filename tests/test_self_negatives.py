@@ -125,6 +125,8 @@ def test_training_refits_the_classifier_and_a_re_evaluation_reads_the_refitted_o
     trainer.train()
     results = json.loads((run / "results.json").read_text())
     assert [steps for steps, _, _ in results["stage_refits"]] == [100, 200, 300, 400]
+    checkpoint = json.loads((run / "checkpoint" / "checkpoint.json").read_text())
+    assert checkpoint["stage_refits"] == results["stage_refits"]  # a resumed run keeps its record
     if any(count for _, count, _ in results["stage_refits"]):
         refitted = load_model(run / REFIT_MODEL_DIR)
         assert "self_negatives" in refitted.metadata.supervision["negatives"]

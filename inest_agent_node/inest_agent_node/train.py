@@ -138,9 +138,9 @@ class Trainer:
             read_run_file(checkpoint / REPLAY_FILE, lambda path: load_replay_buffer(self.model.replay_buffer, path))
             self.history = read_run_file(checkpoint / HISTORY_FILE, read_json)
             self.diagnostics = read_run_file(checkpoint / DIAGNOSTICS_FILE, read_json)
-            self.trained_seconds = read_run_file(
-                checkpoint / CHECKPOINT_INFO, lambda path: float(read_json(path)["training_s"])
-            )
+            info = read_run_file(checkpoint / CHECKPOINT_INFO, read_json)
+            self.trained_seconds = float(info["training_s"])
+            self.refits = info.get("stage_refits", [])  # absent from checkpoints written before it was kept
             if self.reward_env is not None and (checkpoint / EXPLORATION_FILE).exists():
                 self.reward_env.restore_exploration(read_run_file(checkpoint / EXPLORATION_FILE, read_npz))
             if self.stage_refit is not None and (self.run_dir / REFIT_MODEL_DIR).exists():
@@ -223,7 +223,12 @@ class Trainer:
         self.trained_seconds += now - self.session_start
         self.session_start = now
         size = sum(path.stat().st_size for path in checkpoint.iterdir() if path.name != CHECKPOINT_INFO)
-        info = {"steps": int(self.model.num_timesteps), "bytes": size, "training_s": self.trained_seconds}
+        info = {
+            "steps": int(self.model.num_timesteps),
+            "bytes": size,
+            "training_s": self.trained_seconds,
+            "stage_refits": self.refits,
+        }
         write_atomic(checkpoint / CHECKPOINT_INFO, lambda path: path.write_text(json.dumps(info) + "\n"))
         return size
 

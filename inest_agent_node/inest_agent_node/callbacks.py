@@ -42,12 +42,11 @@ class Trainer(Protocol):
     progress_bar: bool
     history: list[list[float]]
     diagnostics: list[dict[str, float]]
+    stage_refit: StageRefit | None
 
     def evaluate(self, episodes: int) -> EvalResult: ...
 
     def save_checkpoint(self) -> int: ...
-
-    stage_refit: StageRefit | None
 
     def refit_stage_classifier(self) -> None: ...
 

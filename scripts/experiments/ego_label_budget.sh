@@ -8,8 +8,8 @@
 # Reports go to results/robot-reward/label-budget/{selection,held-out}/<name>/ with <name>.txt.
 # `window`: the window stage classifier (offsets 0 2 4 8 16) with no labelled episode and with the
 # labelling path's 10 file-labelled ones, fitted without and with 200 rewound and 200 reordered
-# demonstrations (runs/ego-labels/labels<B>-window-demo<N>/), on the selection set, read alone and
-# through the forward filter (labels<B>-window-demo<N>[-forward]).
+# demonstrations (runs/ego-labels/labels<B>-window-demo<N>/), on the selection set, read alone (three
+# frames confirm, or one: -confirm1) and through the forward filter (labels<B>-window-demo<N>[-forward|-confirm1]).
 #   bash scripts/experiments/ego_label_budget.sh [models|selection|held-out|window]   # default: the first three
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -85,6 +85,8 @@ for stage in "${stages[@]}"; do
           report "$OUT/selection/$name" "$model" runs/demos-select --negative-seed-offset 2000000
           report "$OUT/selection/$name-forward" "$model" runs/demos-select --negative-seed-offset 2000000 \
             --scorer-option stage_filter=forward
+          report "$OUT/selection/$name-confirm1" "$model" runs/demos-select --negative-seed-offset 2000000 \
+            --scorer-option confirm_steps=1
         done
       done ;;
     *) echo "ego_label_budget: unknown stage $stage (models, selection, held-out, window)" >&2; exit 2 ;;

@@ -73,6 +73,9 @@ def test_a_claim_the_tracker_never_confirms_becomes_a_negative_one_it_confirms_d
     kept = [(float(embedding[0]), label) for embedding, label in negatives.negatives]
     assert kept[0] == (5.0, 1)  # blue claimed at frame 5 while the tracker kept stage 1
     assert all(label == 1 for _, label in kept) and 1.0 not in [frame for frame, _ in kept]
+    resumed = SelfNegatives(scorer, num_envs=1)
+    resumed.restore(negatives.state())  # from a checkpoint: a refit after a resume forgets none
+    assert [(float(embedding[0]), label) for embedding, label in resumed.negatives] == kept
 
 
 def test_a_labelling_round_keeps_whole_episodes_the_reward_claimed_a_stage_in_with_their_true_stages(
@@ -127,6 +130,8 @@ def test_training_refits_the_classifier_and_a_re_evaluation_reads_the_refitted_o
     assert [steps for steps, _, _ in results["stage_refits"]] == [100, 200, 300, 400]
     checkpoint = json.loads((run / "checkpoint" / "checkpoint.json").read_text())
     assert checkpoint["stage_refits"] == results["stage_refits"]  # a resumed run keeps its record
+    with np.load(run / "checkpoint" / "self-negatives.npz") as kept:  # and its self negatives
+        assert len(kept["stages"]) == results["stage_refits"][-1][1]
     if any(count for _, count, _ in results["stage_refits"]):
         refitted = load_model(run / REFIT_MODEL_DIR)
         assert "self_negatives" in refitted.metadata.supervision["negatives"]

@@ -54,3 +54,15 @@ class SelfNegatives:
             if episode_ends[row]:
                 waiting.clear()
                 self.frames[env] = 0
+
+    def state(self) -> dict[str, np.ndarray]:
+        """The negatives so far, for a checkpoint (the claims still waiting are not kept)."""
+        if not self.negatives:
+            return {"embeddings": np.zeros((0, 0), np.float32), "stages": np.zeros(0, np.int64)}
+        return {
+            "embeddings": np.stack([embedding for embedding, _ in self.negatives]),
+            "stages": np.array([stage for _, stage in self.negatives]),
+        }
+
+    def restore(self, state: dict[str, np.ndarray]) -> None:
+        self.negatives.extend(zip(state["embeddings"], state["stages"].tolist(), strict=True))

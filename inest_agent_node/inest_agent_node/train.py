@@ -57,6 +57,7 @@ CHECKPOINT_DIR = "checkpoint"
 RESULTS_FILE = "results.json"
 EVALUATION_FILE = "evaluation.json"  # a saved policy evaluated over the graph (the agent node's evaluate mode)
 EXPLORATION_FILE = "exploration.npz"  # novelty memories and visited embeddings
+SELF_NEGATIVES_FILE = "self-negatives.npz"  # the stage refit's self negatives so far
 HISTORY_FILE = "history.json"  # the learning curve: [steps, mean score, std] per evaluation
 DIAGNOSTICS_FILE = "diagnostics.json"
 REPLAY_FILE = "replay_buffer.npz"
@@ -146,9 +147,12 @@ class Trainer:
             if self.stage_refit is not None and (self.run_dir / REFIT_MODEL_DIR).exists():
                 refitted = load_model(self.run_dir / REFIT_MODEL_DIR).goals(self.reward_env.reward.num_subtasks)
                 for reader in self.stage_readers():
-                    reader.classifier = refitted.require_stage_classifier()  # the self negatives start over
+                    reader.classifier = refitted.require_stage_classifier()
                 if self.stage_refit.labelling is not None:
-                    self.stage_refit.labelling.restore(self.run_dir)  # a person's labels do not
+                    self.stage_refit.labelling.restore(self.run_dir)  # a person's labels are kept
+            if self.stage_refit is not None and (checkpoint / SELF_NEGATIVES_FILE).exists():
+                # without them the next refit would forget what the earlier ones pushed down
+                self.stage_refit.self_negatives.restore(read_run_file(checkpoint / SELF_NEGATIVES_FILE, read_npz))
         else:
             self.model = algorithm(
                 "MlpPolicy",
@@ -212,13 +216,9 @@ class Trainer:
         if self.config.learner in EXPORTABLE:
             export_policy(self.model, self.config, self.run_dir / POLICY_DIR)  # inest-evaluate's, at every checkpoint
         if self.reward_env is not None:
-            state = self.reward_env.exploration_state()
-
-            def save_exploration(path: Path) -> None:
-                with open(path, "wb") as handle:
-                    np.savez(handle, **state)
-
-            write_atomic(checkpoint / EXPLORATION_FILE, save_exploration)
+            write_npz(checkpoint / EXPLORATION_FILE, self.reward_env.exploration_state())
+        if self.stage_refit is not None and self.stage_refit.self_negatives is not None:
+            write_npz(checkpoint / SELF_NEGATIVES_FILE, self.stage_refit.self_negatives.state())
         now = time.monotonic()
         self.trained_seconds += now - self.session_start
         self.session_start = now
@@ -344,6 +344,14 @@ def check_resume(run_dir: Path, resume: bool, start_over: bool) -> None:
             f"{run_dir} has a checkpoint at step {checkpoint_steps(run_dir)}: resume it, or pick a new folder "
             "to start over"
         )
+
+
+def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    def write(partial: Path) -> None:
+        with open(partial, "wb") as handle:
+            np.savez(handle, **arrays)
+
+    write_atomic(path, write)
 
 
 def read_npz(path: Path) -> dict[str, np.ndarray]:

@@ -9,7 +9,9 @@
 # `window`: the window stage classifier (offsets 0 2 4 8 16) with no labelled episode and with the
 # labelling path's 10 file-labelled ones, fitted without and with 200 rewound and 200 reordered
 # demonstrations (runs/ego-labels/labels<B>-window-demo<N>/), on the selection set, read alone (three
-# frames confirm, or one: -confirm1) and through the forward filter (labels<B>-window-demo<N>[-forward|-confirm1]).
+# frames confirm, or one: -confirm1) and through the forward filter (labels<B>-window-demo<N>[-forward|-confirm1]);
+# and the 10 episodes fitting the window classifier only, the thresholds left at the demonstrations'
+# (labels10-window-demo200-demothresholds).
 #   bash scripts/experiments/ego_label_budget.sh [models|selection|held-out|window]   # default: the first three
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -35,6 +37,17 @@ report() {  # NAME MODEL DATASET [options...]
   [ -f "$name/report.json" ] && return
   rm -rf "$name"
   "$BIN/inest-reward-quality" "$model" "$dataset" --out "$name" --schemes 3 "${EVIDENCE[@]}" "$@" >"$name.txt"
+}
+
+CLIPS=results/robot-reward/labelling-path/negatives/labelled.npz
+window_model() {  # NAME DEMO_NEGATIVES [labelled-episode flags...]: the window classifier, recalibrated once
+  local name=$1 count=$2
+  shift 2
+  [ -f "runs/ego-labels/$name/model/model.json" ] && return
+  rm -rf "runs/ego-labels/$name"
+  "$BIN/inest-pretrain" runs/demos --out "runs/ego-labels/$name" --recalibrate results/long-horizon/reward-model \
+    --random-episodes 0 --wrong-order-episodes 0 --stage-head-iterations 0 --threads 1 \
+    --stage-window-offsets 0 2 4 8 16 --demo-negatives "$count" "$@"
 }
 
 for stage in "${stages[@]}"; do
@@ -70,25 +83,24 @@ for stage in "${stages[@]}"; do
       mkdir -p "$OUT/selection"
       EVIDENCE=(--scorer-option stage_evidence=window)
       # 10: the labelling path's file-labelled episodes (labelling_path_timing.sh negatives), raising the thresholds
-      declare -A LABELLED=([0]="" [10]="--clips results/robot-reward/labelling-path/negatives/labelled.npz --clips-raise-thresholds")
+      declare -A LABELLED=([0]="" [10]="--clips $CLIPS --clips-raise-thresholds")
       for budget in 0 10; do
         for count in 0 200; do
           name=labels$budget-window-demo$count
-          model=runs/ego-labels/$name/model
-          [ -f "$model/model.json" ] || {
-            rm -rf "runs/ego-labels/$name"
-            # shellcheck disable=SC2086  # a flag list
-            "$BIN/inest-pretrain" runs/demos --out "runs/ego-labels/$name" --recalibrate results/long-horizon/reward-model \
-              --random-episodes 0 --wrong-order-episodes 0 --stage-head-iterations 0 --threads 1 \
-              --stage-window-offsets 0 2 4 8 16 --demo-negatives "$count" ${LABELLED[$budget]}
-          }
-          report "$OUT/selection/$name" "$model" runs/demos-select --negative-seed-offset 2000000
-          report "$OUT/selection/$name-forward" "$model" runs/demos-select --negative-seed-offset 2000000 \
-            --scorer-option stage_filter=forward
-          report "$OUT/selection/$name-confirm1" "$model" runs/demos-select --negative-seed-offset 2000000 \
-            --scorer-option confirm_steps=1
+          # shellcheck disable=SC2086  # a flag list
+          window_model "$name" "$count" ${LABELLED[$budget]}
+          report "$OUT/selection/$name" "runs/ego-labels/$name/model" runs/demos-select --negative-seed-offset 2000000
+          report "$OUT/selection/$name-forward" "runs/ego-labels/$name/model" runs/demos-select \
+            --negative-seed-offset 2000000 --scorer-option stage_filter=forward
+          report "$OUT/selection/$name-confirm1" "runs/ego-labels/$name/model" runs/demos-select \
+            --negative-seed-offset 2000000 --scorer-option confirm_steps=1
         done
-      done ;;
+      done
+      # the same 10 episodes fitting the classifier only, the thresholds left where the demonstrations
+      # set them: what raising them costs the shaping's rho
+      name=labels10-window-demo200-demothresholds
+      window_model "$name" 200 --clips "$CLIPS"
+      report "$OUT/selection/$name" "runs/ego-labels/$name/model" runs/demos-select --negative-seed-offset 2000000 ;;
     *) echo "ego_label_budget: unknown stage $stage (models, selection, held-out, window)" >&2; exit 2 ;;
   esac
 done

@@ -369,6 +369,7 @@ DIAGNOSTIC_COLUMNS = {
     "episodes with an unearned completion": "unearned_completion_rate",
     "... claimed early, then earned": "early_claim_rate",
     "... never placed in time": "unplaced_claim_rate",
+    "episodes with a placed block never claimed": "missed_rate",
 }
 
 
@@ -385,7 +386,8 @@ def diagnostics_table(methods: list[str], rows: list[dict[str, Any]]) -> list[st
         "What each reward paid for in training (each run's `reward_diagnostics`: its first → its last",
         "window of training episodes, mean over finished seeds; an unearned completion: the reward's",
         "stage claimed a block that had never been placed, split into claims its block earned within",
-        f"{EARLY_CLAIM_STEPS} steps and claims of a block not placed in time; blank: the reward has no such part).",
+        f"{EARLY_CLAIM_STEPS} steps and claims of a block not placed in time; a placed block never claimed: one the",
+        "reward missed, as long as the episode lasted; blank: the reward has no such part).",
         "",
         f"| method | {' | '.join(DIAGNOSTIC_COLUMNS)} |",
         "|---|" + "---|" * len(DIAGNOSTIC_COLUMNS),

@@ -13,6 +13,7 @@ from inest_agent_node.self_negatives import CONFIRM_WITHIN, SelfNegatives
 from inest_agent_node.stage_refit import REFIT_MODEL_DIR, StageRefit
 from inest_agent_node.summary import reward_supervision
 from inest_agent_node.train import Trainer
+from inest_reward_node.learning.data import load_demos
 from inest_reward_node.learning.task_stages import PROGRESS_FIELD
 from inest_reward_node.runtime.config import RewardConfig
 from inest_reward_node.runtime.model import load_model
@@ -98,17 +99,24 @@ def test_a_labelling_round_keeps_whole_episodes_the_reward_claimed_a_stage_in_wi
     assert len(labelling.episodes) == 1
 
     model = load_model(tiny_tcc_run[1] / "model")
+    model.goals(3).thresholds = [-10.0] * 3  # calibrated as low as no labelled episode would leave them
     scorer = RewardScorer(model, 3, config=RewardConfig(stage_evidence="embedding"))
-    labelling.episodes = [(model.embed(np.zeros((3, 48, 48, 3), np.uint8)), truth)]
+    # a whole demonstration labelled "nothing placed": the loop's strongest case against the thresholds
+    demo = load_demos(tiny_demos, "train", model.view, model.image_size, 1, progress_bar=False)[0]
+    labelling.episodes = [(model.embed(demo.frames), np.zeros(len(demo.frames), int))]
     refit = StageRefit(scorer, tiny_demos, None, labelling)
     frames = refit.refit(tmp_path, [scorer])
     assert (frames.self_negatives, frames.labelled_episodes) == (0, 1) and not labelling.round_complete()
-    supervision = load_model(tmp_path / REFIT_MODEL_DIR).metadata.supervision
+    refitted = load_model(tmp_path / REFIT_MODEL_DIR)
+    supervision = refitted.metadata.supervision
     assert supervision["negatives"]["policy_rollouts"] == {"episodes": 1, "labelled_by": "simulator"}
     assert supervision["labelled_episodes"] == model.metadata.supervision["labelled_episodes"] + 1
+    raised = refitted.goals(3).thresholds
+    assert min(raised) > -10.0  # raised against the episode, as far as the demonstrations allow
+    assert scorer.trackers[0].thresholds == raised and scorer.goals.thresholds == raised  # read from the next frame
     again = RolloutLabelling(3, num_envs=2, label_at=(100,), per_round=1)
     again.restore(tmp_path)  # a resumed run keeps the person's labels and owes no refit for them
-    assert (tmp_path / LABELLED_FILE).exists() and again.episodes[0][1].tolist() == [1, 1, 1]
+    assert (tmp_path / LABELLED_FILE).exists() and not again.episodes[0][1].any()
     again.open_rounds(100)
     assert not again.round_complete() and again.wanted == 0
 

@@ -146,6 +146,9 @@ class TrainConfig:
     # a person) and the stage classifier is refitted with them; (): none
     label_at: tuple[int, ...] = ()
     label_episodes: int = 5
+    # the labelled episodes also raise the completion thresholds (stage_refit.py), as random play
+    # raises them at calibration; False: they refit the stage classifier only
+    label_raise_thresholds: bool = True
     sac: SacConfig = field(default_factory=SacConfig)
 
     def __post_init__(self) -> None:
@@ -243,11 +246,18 @@ class TrainConfig:
 
 
 def setting_defaults() -> dict[str, Any]:
-    """Today's defaults of the settings a saved run's config may lack: one added since it was
-    written is taken to be its default (a resumed run, a continued grid cell). New settings
-    default to what runs did before them, so this changes nothing a run was trained with."""
+    """The settings a saved run's config may lack, as runs made before each was added had them
+    (a resumed run, a continued grid cell): today's default where that is what they did, so this
+    changes nothing a run was trained with."""
     plain = {f.name: f.default for f in fields(TrainConfig) if f.default is not MISSING}
-    return {**plain, "label_at": [], "learned_reward": RewardConfig().to_dict(), "sac": asdict(SacConfig())}
+    # the first runs that labelled their episodes refitted the classifier only
+    return {
+        **plain,
+        "label_at": [],
+        "label_raise_thresholds": False,
+        "learned_reward": RewardConfig().to_dict(),
+        "sac": asdict(SacConfig()),
+    }
 
 
 # inest-train flags an experiment grid sets for every cell itself (experiments.py); `model` has its own key

@@ -4,10 +4,14 @@ the loop (labelled_rollouts.py, a person's labels).
 
 Each refit fits the classifier on a sample of the demonstrations, the labelled negative episodes
 the model was calibrated on (its random and wrong-order play, made again from their seeds, and
-its clip files: a person's labels are not thrown away) and both sources' frames so far; the
-training and evaluation rewards read it from the next step on, and the model it makes is saved
-in RUN/reward-model/, which `inest-evaluate` then scores with, its supervision record counting
-what it was fitted on. Embedding stage evidence only (the pixel stage head takes minutes to fit).
+its clip files: a person's labels are not thrown away) and both sources' frames so far. The
+labelled episodes also raise the completion thresholds (unless `label_raise_thresholds` is
+off), as calibration raises them against random play (learning/calibrate.py
+`raised_threshold`): the embedding alone does not tell a policy's false completions from true
+ones, the thresholds do (docs/robot-reward.md). The training and evaluation rewards read the
+result from the next step on, and the model it makes is saved in RUN/reward-model/, which
+`inest-evaluate` then scores with, its supervision record counting what it was fitted on.
+Embedding stage evidence only (the pixel stage head takes minutes to fit).
 """
 
 from __future__ import annotations
@@ -16,19 +20,22 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
+from inest_reward_node.learning.calibrate import raised_threshold
 from inest_reward_node.learning.clips import Clip, load_clips, random_play, wrong_order_play
+from inest_reward_node.learning.config import CalibrationConfig
 from inest_reward_node.learning.data import load_demos
 from inest_reward_node.learning.stage_fitting import StageClassifierConfig, fit_stage_classifier
 from inest_reward_node.learning.task_stages import demo_stages, true_stages
-from inest_reward_node.runtime.model import RewardModel, save_model
+from inest_reward_node.runtime.model import RewardModel, SubtaskGoals, save_model
 from inest_reward_node.runtime.rewards import RewardParts, RewardScorer, Steps
-from inest_reward_node.runtime.stage_classifier import StageClassifier
 
 from .labelled_rollouts import RolloutLabelling
 from .self_negatives import SelfNegatives
 
 REFIT_MODEL_DIR = "reward-model"
 DEMOS = 200  # training demonstrations whose frames the refit keeps the classifier anchored to
+# the calibration settings that raise a threshold against labelled episodes (CalibrationConfig)
+RAISING = ("false_fire_rate", "demo_pass_rate", "late_frames")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,14 +55,17 @@ class StageRefit:
         dataset: str | Path,
         self_negatives: SelfNegatives | None,
         labelling: RolloutLabelling | None,
+        raise_thresholds: bool = True,
     ) -> None:
         if scorer.classifier is None:
             raise ValueError("a stage refit fits the embedding's stage classifier: use stage_evidence embedding")
         self.scorer, self.self_negatives, self.labelling = scorer, self_negatives, labelling
+        self.raise_thresholds = raise_thresholds  # with the labelled episodes (the loop's)
         model, scheme = scorer.model, scorer.num_subtasks
         demos = load_demos(dataset, "train", model.view, model.image_size, DEMOS, progress_bar=False)
         self.demo_embeddings = [model.embed(demo.frames) for demo in demos]
         self.demo_stages = [demo_stages(demo.progress, demo.labels[scheme], scheme) for demo in demos]
+        self.demo_ends = [demo.ends[scheme] for demo in demos]
         labelled = calibration_negatives(model)
         self.labelled_embeddings = [model.embed(clip.frames) for clip in labelled]
         self.labelled_stages = [true_stages(clip.progress, clip.held, scheme) for clip in labelled]
@@ -90,15 +100,42 @@ class StageRefit:
             [*self.labelled_stages, *own_stages],
             StageClassifierConfig(seed=self.refits),
         )
+        goals = self.scorer.model.goals(self.scorer.num_subtasks)  # as calibrated: each refit starts from it
+        goals = dataclasses.replace(
+            goals, stage_classifier=classifier, thresholds=self.raised_thresholds(goals, episodes)
+        )
         for reader in readers:
-            reader.classifier = classifier
+            reader.use_goals(goals)
         self.refits += 1
         if self.labelling is not None:
             self.labelling.refitted_with = len(episodes)
             if episodes:
                 self.labelling.save(run_dir)
-        save_refitted(self.scorer.model, self.scorer.num_subtasks, classifier, frames, run_dir / REFIT_MODEL_DIR)
+        save_refitted(self.scorer.model, goals, frames, run_dir / REFIT_MODEL_DIR)
         return frames
+
+    def raised_thresholds(self, goals: SubtaskGoals, episodes: list[tuple[np.ndarray, np.ndarray]]) -> list[float]:
+        """The calibrated thresholds raised against the labelled episodes of the loop, as the
+        model's calibration raised them against its random play (its own settings)."""
+        if not episodes or not self.raise_thresholds:
+            return list(goals.thresholds)
+        model, hold_steps = self.scorer.model, self.scorer.hold_steps
+        settings = {name: model.metadata.calibration[name] for name in RAISING if name in model.metadata.calibration}
+        calibration = dataclasses.replace(CalibrationConfig(), **settings)
+        subtask_rewards = self.scorer.reward.subtask_rewards
+        rewards = [subtask_rewards(model, embeddings, goals) for embeddings in self.demo_embeddings]
+        played = [(subtask_rewards(model, embeddings, goals), stages) for embeddings, stages in episodes]
+        return [
+            raised_threshold(
+                threshold,
+                subtask,
+                [(reward[:, subtask], ends) for reward, ends in zip(rewards, self.demo_ends, strict=True)],
+                [np.where(stages <= subtask, reward[:, subtask], -np.inf) for reward, stages in played],
+                hold_steps,
+                calibration,
+            )
+            for subtask, threshold in enumerate(goals.thresholds)
+        ]
 
 
 def calibration_negatives(model: RewardModel) -> list[Clip]:
@@ -113,12 +150,10 @@ def calibration_negatives(model: RewardModel) -> list[Clip]:
     return clips
 
 
-def save_refitted(
-    model: RewardModel, scheme: int, classifier: StageClassifier, frames: RefitFrames, folder: Path
-) -> None:
-    """The model with `scheme`'s stage classifier replaced, its supervision saying what by."""
+def save_refitted(model: RewardModel, refitted: SubtaskGoals, frames: RefitFrames, folder: Path) -> None:
+    """The model with one scheme's goals replaced by their refit, its supervision saying what by."""
     metadata = model.metadata
-    goals = {**metadata.subtasks, scheme: dataclasses.replace(metadata.subtasks[scheme], stage_classifier=classifier)}
+    goals = {**metadata.subtasks, len(refitted.thresholds): refitted}
     supervision = dict(metadata.supervision)
     if supervision:
         negatives = dict(supervision["negatives"])

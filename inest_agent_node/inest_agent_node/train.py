@@ -147,7 +147,7 @@ class Trainer:
             if self.stage_refit is not None and (self.run_dir / REFIT_MODEL_DIR).exists():
                 refitted = load_model(self.run_dir / REFIT_MODEL_DIR).goals(self.reward_env.reward.num_subtasks)
                 for reader in self.stage_readers():
-                    reader.classifier = refitted.require_stage_classifier()
+                    reader.use_goals(refitted)
                 if self.stage_refit.labelling is not None:
                     self.stage_refit.labelling.restore(self.run_dir)  # a person's labels are kept
             if self.stage_refit is not None and (checkpoint / SELF_NEGATIVES_FILE).exists():
@@ -176,7 +176,7 @@ class Trainer:
         if config.label_at:
             labelling = RolloutLabelling(scorer.num_subtasks, config.num_envs, config.label_at, config.label_episodes)
         self_negatives = SelfNegatives(scorer, config.num_envs) if config.refit_every else None
-        refit = StageRefit(scorer, config.refit_demos, self_negatives, labelling)
+        refit = StageRefit(scorer, config.refit_demos, self_negatives, labelling, config.label_raise_thresholds)
         self.reward_env.scored_hook = refit.observe
         return refit
 
@@ -452,6 +452,11 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     for name in INTEGER_FLAGS:
         parser.add_argument(f"--{name.replace('_', '-')}", type=int)
     parser.add_argument(
+        "--label-raise-thresholds",
+        action=argparse.BooleanOptionalAction,
+        help="the episodes labelled in the loop also raise the completion thresholds (default: yes)",
+    )
+    parser.add_argument(
         "--label-at",
         type=int,
         nargs="+",
@@ -469,7 +474,7 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
         name: getattr(args, name)
         for name in (
             *("reward", "model", "subtasks", "view", "observation", "oracle", "learner", "overlap_updates"),
-            "refit_demos",
+            *("refit_demos", "label_raise_thresholds"),
             *INTEGER_FLAGS,
         )
         if getattr(args, name) is not None

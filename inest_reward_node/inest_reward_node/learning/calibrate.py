@@ -101,19 +101,30 @@ def calibrate_thresholds(
         lows = [float(np.min(rewards[subtask_windows(end, hold_steps)[subtask]])) for rewards, end in demos]
         threshold = float(np.percentile(lows, config.percentile))
         negatives = [] if negatives_per_subtask is None else negatives_per_subtask(subtask)
-        if len(negatives):
-            held_negatives = [highest_held(r, hold_steps) for r in negatives]
-            negative_level = float(np.quantile(held_negatives, 1 - config.false_fire_rate, method="higher"))
-            spans = [
-                slice(int(subtask_starts(end)[subtask]), int(end[subtask]) + 1 + config.late_frames) for _, end in demos
-            ]
-            demo_held = [
-                highest_held(rewards[span], hold_steps) for (rewards, _), span in zip(demos, spans, strict=True)
-            ]
-            ceiling = float(np.quantile(demo_held, 1 - config.demo_pass_rate, method="lower"))
-            threshold = max(threshold, min(negative_level, ceiling))
-        thresholds.append(threshold)
+        thresholds.append(raised_threshold(threshold, subtask, demos, negatives, hold_steps, config))
     return thresholds
+
+
+def raised_threshold(
+    threshold: float,
+    subtask: int,
+    demos: Sequence[tuple[np.ndarray, np.ndarray]],
+    negatives: Sequence[np.ndarray],
+    hold_steps: int,
+    config: CalibrationConfig,
+) -> float:
+    """`threshold` raised until at most `false_fire_rate` of the `negatives` (per episode, the
+    subtask's reward on every frame, -inf where it was really complete) would complete it, but
+    never so far that fewer than `demo_pass_rate` of the `demos` ((subtask reward, subtask ends)
+    per demonstration) complete it by `late_frames` after its end."""
+    if not len(negatives):
+        return threshold
+    held_negatives = [highest_held(r, hold_steps) for r in negatives]
+    negative_level = float(np.quantile(held_negatives, 1 - config.false_fire_rate, method="higher"))
+    spans = [slice(int(subtask_starts(end)[subtask]), int(end[subtask]) + 1 + config.late_frames) for _, end in demos]
+    demo_held = [highest_held(rewards[span], hold_steps) for (rewards, _), span in zip(demos, spans, strict=True)]
+    ceiling = float(np.quantile(demo_held, 1 - config.demo_pass_rate, method="lower"))
+    return max(threshold, min(negative_level, ceiling))
 
 
 def calibrate(

@@ -20,7 +20,7 @@ import numpy as np
 from .config import RewardConfig
 from .intrinsic import IntrinsicConfig, NoveltyMemory
 from .methods import REWARD_METHODS, Batch, default_variant, goal_distances, inest_distance_unit
-from .model import ModelError, RewardModel
+from .model import ModelError, RewardModel, SubtaskGoals
 from .shaping import segment_closeness
 from .stage_classifier import at_least as at_least_of
 from .stage_filter import StageFilter, exactly
@@ -178,6 +178,15 @@ class RewardScorer:
         self.histories = [self.window.history() if self.window else None for _ in range(num_envs)]
         self.steps_since_switch = np.full(num_envs, -1)
         self.memories: list[NoveltyMemory] = []
+
+    def use_goals(self, goals: SubtaskGoals) -> None:
+        """A recalibration of the same subtask goals (refitted stage classifier, raised thresholds),
+        read from the next frame on; the trackers keep their episodes' stages."""
+        self.goals = self.reward.goals = goals
+        if self.classifier is not None:
+            self.classifier = goals.require_stage_classifier()
+        for tracker in self.trackers:
+            tracker.use_thresholds(goals.thresholds)
 
     def new_tracker(self) -> StageTracker:
         return self.tracker_class.from_settings(self.config, self.goals.thresholds, self.hold_steps)

@@ -61,6 +61,9 @@ class StageTracker:
         self.up_streak = 0
         self.down_streak = 0
 
+    def use_thresholds(self, thresholds: Sequence[float]) -> None:
+        """Recalibrated completion thresholds, from the next frame on (a tracker without any ignores them)."""
+
     def step(self, evidence: Evidence) -> int:
         raise NotImplementedError
 
@@ -107,6 +110,11 @@ class ThresholdTracker(StageTracker):
     @classmethod
     def from_settings(cls, config: TrackerSettings, thresholds: Sequence[float], hold_steps: int) -> StageTracker:
         return cls(thresholds, hold_steps)
+
+    def use_thresholds(self, thresholds: Sequence[float]) -> None:
+        if len(thresholds) != self.num_subtasks:
+            raise ValueError(f"expected {self.num_subtasks} thresholds, got {len(thresholds)}")
+        self.thresholds = [float(value) for value in thresholds]
 
     def passes(self, rewards: np.ndarray) -> bool:
         """The threshold test of the subtask being worked on."""

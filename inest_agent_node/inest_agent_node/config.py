@@ -246,18 +246,11 @@ class TrainConfig:
 
 
 def setting_defaults() -> dict[str, Any]:
-    """The settings a saved run's config may lack, as runs made before each was added had them
-    (a resumed run, a continued grid cell): today's default where that is what they did, so this
-    changes nothing a run was trained with."""
+    """Today's defaults of the settings a saved run's config may lack: one added since it was
+    written is taken to be its default (a resumed run, a continued grid cell). New settings
+    default to what runs did before them, so this changes nothing a run was trained with."""
     plain = {f.name: f.default for f in fields(TrainConfig) if f.default is not MISSING}
-    # the first runs that labelled their episodes refitted the classifier only
-    return {
-        **plain,
-        "label_at": [],
-        "label_raise_thresholds": False,
-        "learned_reward": RewardConfig().to_dict(),
-        "sac": asdict(SacConfig()),
-    }
+    return {**plain, "label_at": [], "learned_reward": RewardConfig().to_dict(), "sac": asdict(SacConfig())}
 
 
 # inest-train flags an experiment grid sets for every cell itself (experiments.py); `model` has its own key

@@ -289,12 +289,13 @@ def test_report_shows_what_each_reward_paid_for_from_its_first_to_its_last_windo
     curve = [[100, 0.1, 0.0]]
     first = {"reward_per_step": -0.7, "shaping_per_step": -0.7, "bonus_per_step": 0.0, "intrinsic_per_step": 0.0}
     first |= {"final_progress_mean": 0.04, "unearned_completion_rate": 0.0, "early_claim_rate": 0.0}
-    first |= {"unplaced_claim_rate": 0.0}
+    first |= {"unplaced_claim_rate": 0.0, "missed_rate": 0.0}
     for seed, (shaping, unearned) in enumerate([(-0.1, 0.2), (-0.2, 0.3)]):
         write_run(tmp_path, "hacked", seed, 0.0, curve)
         results_file = tmp_path / "hacked" / f"seed{seed}" / "results.json"
         last = first | {"reward_per_step": shaping, "shaping_per_step": shaping, "final_progress_mean": 0.0}
         last |= {"unearned_completion_rate": unearned, "early_claim_rate": 0.1, "unplaced_claim_rate": unearned - 0.1}
+        last |= {"missed_rate": 0.05}  # and missed a block placed
         results_file.write_text(
             json.dumps(json.loads(results_file.read_text()) | {"reward_diagnostics": [first, last]})
         )
@@ -306,8 +307,8 @@ def test_report_shows_what_each_reward_paid_for_from_its_first_to_its_last_windo
     lines = (tmp_path / "report.md").read_text().splitlines()
     # the reward rose while the blocks placed fell to none, and the stage claimed unplaced blocks
     hacked = "| hacked | -0.7 → -0.15 | -0.7 → -0.15 | 0 → 0 | 0 → 0 | 0.04 → 0 |"
-    assert f"{hacked} 0 % → 25 % | 0 % → 10 % | 0 % → 15 % |" in lines
-    assert "| oracle | 0.1 → 0.1 | | | | 1 → 1 | | | |" in lines  # the environment's reward has no parts
+    assert f"{hacked} 0 % → 25 % | 0 % → 10 % | 0 % → 15 % | 0 % → 5 % |" in lines
+    assert "| oracle | 0.1 → 0.1 | | | | 1 → 1 | | | | |" in lines  # the environment's reward has no parts
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert [row["reward_diagnostics"]["last"]["shaping_per_step"] for row in summary["runs"][:2]] == [-0.1, -0.2]
 

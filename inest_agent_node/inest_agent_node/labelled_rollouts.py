@@ -4,11 +4,12 @@ robot user can pay for, placed where the policy is rather than on random play.
 At each labelling step (`label_at`) a round opens: the agent's next `label_episodes` training
 episodes in which the reward claimed a stage (those a person watching `inest-monitor` would check)
 are labelled with their true stage on every frame; the completion thresholds are raised against
-them and the stage classifier refitted with them (stage_refit.py), kept for every later refit. The simulator stands in for the person, who would
-mark the frame where each block enters the goal in a clip label file (`inest-record-clips`, then
-`inest-reward-quality --clips`); the labels are the same, since a stage holds from one marked
-frame to the next. Only episodes that start once a round is open are recorded, so each is whole.
-The labelled episodes are kept in RUN/labelled-rollouts.npz: a resumed run keeps them.
+them and the stage classifier refitted with them (stage_refit.py), kept for every later refit.
+The simulator stands in for the person, who would mark the frame where each block enters the
+goal in a clip label file (`inest-record-clips`, then `inest-reward-quality --clips`); the labels
+are the same, since a stage holds from one marked frame to the next. Only episodes that start
+once a round is open are recorded, so each is whole. The labelled episodes are kept in
+RUN/labelled-rollouts.npz: a resumed run keeps them.
 """
 
 from __future__ import annotations

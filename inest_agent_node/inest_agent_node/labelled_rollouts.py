@@ -46,7 +46,10 @@ class RolloutLabelling:
         return self.wanted <= 0 and len(self.episodes) > self.refitted_with
 
     def observe(self, steps: Steps, parts: RewardParts) -> None:
-        """One scored batch (rows in environment order within each round)."""
+        """One scored batch (rows in environment order within each round); nothing to do, on the
+        training's hot path, while no round is open and no episode is being recorded."""
+        if self.wanted <= 0 and not any(record is not None for record in self.recording):
+            return
         truth = privileged_stages(steps.states, self.scheme)
         for row, env in enumerate(steps.envs):
             record = self.recording[env]

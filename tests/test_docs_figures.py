@@ -5,8 +5,11 @@ A table's sources are the result files (JSON or YAML under results/, or a folder
 named in the table itself, in the lines just above it, or in a `<!-- figures: PATH ... -->`
 comment above it. Each decimal number and percentage in a table cell (the first column names the
 row and is not read) must equal a number in those files at the precision it is printed with (a
-percentage: the number or a fraction times 100). A table of settings rather than results says
-so with `<!-- not figures: WHY -->`.
+percentage: the number or a fraction times 100). Where the first column names a method, run or
+folder (its code spans, or one word) that the files name, the row's figures must be in what
+names it (the records with that name, the files in a folder of that name), so that a figure
+cannot pass by matching another row's number (a row gathered from several records names each).
+A table of settings rather than results says so with `<!-- not figures: WHY -->`.
 """
 
 from __future__ import annotations
@@ -74,6 +77,46 @@ def numbers(value: object, out: list[float]) -> list[float]:
     return out
 
 
+def names_one(text: str, names: set[str]) -> bool:
+    """Whether `text` is one of `names`, or a path or run that ends or starts with it
+    (`results/x/NAME`, `NAME/seed0`)."""
+    return any(text == name or text.endswith("/" + name) or text.startswith(name + "/") for name in names)
+
+
+def named_records(value: object, names: set[str], out: list[object]) -> list[object]:
+    """The objects (at any depth) that name one of `names`: by a string entry, or as the entry
+    of a key that does."""
+    if isinstance(value, dict):
+        if any(isinstance(item, str) and names_one(item, names) for item in value.values()):
+            out.append(value)
+        out += [item for key, item in value.items() if names_one(str(key), names)]
+        for item in value.values():
+            named_records(item, names, out)
+    elif isinstance(value, list):
+        for item in value:
+            named_records(item, names, out)
+    return out
+
+
+def row_names(row: str) -> set[str]:
+    """What a row's first column names: its `code` spans that are not paths, or the cell itself
+    when it is one word."""
+    first = row.split("|")[1].strip()
+    names = {span for span in re.findall(r"`([^`]+)`", first) if "/" not in span}
+    return names or ({first} if first and " " not in first and "/" not in first else set())
+
+
+def row_sources(files: list[Path], loaded: list[object], names: set[str]) -> list[object]:
+    """What a row that names its method, run or folder is read from: the files of that name (or
+    in a folder of that name) and the records that name it."""
+    named_files = [
+        data
+        for path, data in zip(files, loaded, strict=True)
+        if names & set(path.parts[:-1]) or any(path.stem == name or path.stem.startswith(name + "-") for name in names)
+    ]
+    return named_files + named_records(loaded, names, [])
+
+
 def printed(token: str, values: list[float], percent: bool, minutes: bool) -> bool:
     """Whether a number printed as `token` is one of `values` at that precision: a percentage
     may be stored as a fraction, a figure in minutes as seconds."""
@@ -97,10 +140,12 @@ def test_every_figure_of_a_results_table_is_in_the_result_files_it_names(page, l
         return
     files = source_files(above + "\n" + "\n".join(rows))
     assert files, f"{page.name}:{line}: the table names no result file (add <!-- figures: PATH --> above it)"
-    values: list[float] = []
-    for path in files:
-        text = path.read_text()
-        numbers(json.loads(text) if path.suffix == ".json" else yaml.safe_load(text), values)
+    loaded = [
+        json.loads(path.read_text()) if path.suffix == ".json" else yaml.safe_load(path.read_text()) for path in files
+    ]
+    values = numbers(loaded, [])
+    # a row that names what it reports (a method, a run) is read from what names it
+    row_values = {row: numbers(row_sources(files, loaded, row_names(row)), []) or values for row in rows}
     missing = [
         match.group(0).strip()
         for row in rows
@@ -109,7 +154,7 @@ def test_every_figure_of_a_results_table_is_in_the_result_files_it_names(page, l
         if (match.group(1) or match.group(4))
         and not printed(
             match.group(1) or match.group(3),
-            values,
+            row_values[row],
             percent=bool(match.group(2) or match.group(4)),
             minutes=cell[match.end() :].lstrip().startswith("minute"),
         )

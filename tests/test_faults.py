@@ -28,7 +28,7 @@ from inest_interfaces.msg import Reward
 from inest_reward_node.runtime.serving import StreamScorer
 from rosgraph import BIN, fresh_domain
 from test_agent import tiny_config
-from test_graph import TINY_AGENT, count_steps, reward_node_args, sim_node_args
+from test_graph import MID_EPISODE, TINY_AGENT, count_steps, reward_node_args, sim_node_args
 from test_serving import FRAMES, scorer
 
 pytestmark = pytest.mark.timeout(300)
@@ -364,7 +364,7 @@ def test_the_agent_resets_a_restarted_simulator_and_finishes(graph, tiny_model, 
         "-p", f"model:={tiny_model}",
         "-p", "total_steps:=300", "-p", "step_timeout:=1.0", *TINY_AGENT,
     )  # fmt: skip
-    assert count_steps(graph.env, 150, timeout=120, into_episode=range(30, 61)) >= 150  # episodes are 100 steps
+    assert count_steps(graph.env, 150, timeout=120, into_episode=MID_EPISODE) >= 150
     graph.running["sim0"].kill()
     graph.running["sim0"].wait()
     graph.start("sim0-restarted", *sim_node_args("sim0"))  # its clock and episodes start over

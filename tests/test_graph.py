@@ -119,6 +119,9 @@ def test_lockstep_training_over_the_graph_with_two_simulators(graph, tiny_model,
     assert evaluation["layouts"] == {"name": "test", "first_seed": 30_000_000}
 
 
+MID_EPISODE = range(30, 61)  # steps into a 100-step episode where a fault lands mid-episode with room to spare
+
+
 def count_steps(domain_env, until_steps: int, timeout: float, into_episode: range | None = None) -> int:
     """Watch sim0's episode status from this process until `until_steps` steps were taken and, if
     `into_episode` is given, the latest one is that many steps into its episode: a fault injected
@@ -150,8 +153,7 @@ def test_the_agent_waits_for_a_restarted_reward_node_resets_the_episode_it_lost_
         "-p", f"model:={tiny_model}",
         "-p", "total_steps:=300", "-p", "step_timeout:=1.0", *TINY_AGENT,
     )  # fmt: skip
-    # half-way through the second 100-step episode
-    assert count_steps(graph.env, 150, timeout=120, into_episode=range(30, 61)) >= 150
+    assert count_steps(graph.env, 150, timeout=120, into_episode=MID_EPISODE) >= 150  # from the second episode on
     reward.kill()
     reward.wait()
     time.sleep(2.0)  # the agent is stuck on a step now

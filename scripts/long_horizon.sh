@@ -38,9 +38,9 @@ declare -A METHODS=(
   [inest3-scene-none]="--reward inest --model $SCENE_MODEL --intrinsic none --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
   [inest3-scene-embedding]="--reward inest --model $SCENE_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
   [inest3-scene96-embedding]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --total-steps 300000 $THREE_FRAMES"
-  # the same head with the two-speed confirmation: one frame at P >= 0.9 confirms at once (docs/reward-signal.md, "The tracker's lag")
+  # the same head with the two-speed confirmation: one frame at P >= 0.9 confirms at once (docs/reports/reward-signal.md, "The tracker's lag")
   [inest3-scene96-embedding-instant09]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --instant-confidence 0.9 --total-steps 300000"
-  # the same with heads fitted on 600 demonstrations for 3000 iterations (docs/reward-signal.md, "The stage head's last frame")
+  # the same with heads fitted on 600 demonstrations for 3000 iterations (docs/reports/reward-signal.md, "The stage head's last frame")
   [inest3-scene96-600demos-embedding-instant09]="--reward inest --model $SCENE96_600_MODEL --intrinsic embedding --stage-evidence pixels --instant-confidence 0.9 --total-steps 300000"
   [inest3-scene96-600demos-none-instant09]="--reward inest --model $SCENE96_600_MODEL --intrinsic none --stage-evidence pixels --instant-confidence 0.9 --total-steps 300000"
   [inest3-scene96-embedding-state-obs]="--reward inest --model $SCENE96_MODEL --intrinsic embedding --stage-evidence pixels --observation state --total-steps 300000 $THREE_FRAMES"

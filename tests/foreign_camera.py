@@ -107,7 +107,7 @@ def main() -> None:
                 "stamp": stamp,
                 "frame_id": msg.header.frame_id,
                 "total": msg.total,
-                "distance": msg.distance_reward,
+                "shaping": msg.shaping_reward,
                 "bonus": msg.subtask_bonus,
                 "intrinsic": msg.intrinsic_bonus,
                 "subtask": msg.subtask,

@@ -37,7 +37,7 @@ def expected_messages(namespaces: list[str], images: bool) -> dict[str, list]:
         for step in range(STEPS):
             stamp_ns = (step + 1) * PERIOD_NS
             total, subtask = 0.25 * step - stream, step % 4
-            reward = Reward(total=total, distance_reward=-0.5, subtask=subtask, num_subtasks=3)
+            reward = Reward(total=total, shaping_reward=-0.5, subtask=subtask, num_subtasks=3)
             reward.subtask_completed = step % 4 == 1
             status = EpisodeStatus(episode=stream, step=step, seed=7 + stream, score=0.5 * step, truncated=step == 5)
             for msg in (reward, status):

@@ -31,7 +31,8 @@ MARKER = re.compile(r"<!-- figures: (.*?) -->")
 
 
 def pages() -> list[Path]:
-    return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    """The README and every page under docs/, the reports in docs/reports/ included."""
+    return [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 
 
 def tables(page: Path) -> list[tuple[int, str, list[str]]]:
@@ -133,7 +134,7 @@ CASES = [(page, line, above, rows) for page in pages() for line, above, rows in 
 
 
 @pytest.mark.parametrize(
-    ("page", "line", "above", "rows"), CASES, ids=[f"{page.name}:{line}" for page, line, _, _ in CASES]
+    ("page", "line", "above", "rows"), CASES, ids=[f"{page.relative_to(ROOT)}:{line}" for page, line, _, _ in CASES]
 )
 def test_every_figure_of_a_results_table_is_in_the_result_files_it_names(page, line, above, rows):
     if "<!-- not figures:" in above:

@@ -64,7 +64,7 @@ def test_report_end_to_end(tiny_tcc_run, tmp_path):
         assert set(row["false_completion_any"]) == {"random", "wrong_order"}
 
 
-def test_report_refuses_scorer_options_the_scorer_does_not_take(tiny_tcc_run, tmp_path):
+def test_report_refuses_reward_settings_the_scorer_does_not_take(tiny_tcc_run, tmp_path):
     config, run_dir = tiny_tcc_run
     run = subprocess.run(
         [
@@ -73,14 +73,15 @@ def test_report_refuses_scorer_options_the_scorer_does_not_take(tiny_tcc_run, tm
             config.dataset,
             "--out",
             tmp_path,
-            "--scorer-option",
-            "no_such_option=1",
+            "--stage-confidence",
+            "1.5",
         ],
         capture_output=True,
         text=True,
         check=False,
     )
-    assert run.returncode == 2 and "no_such_option" in run.stderr, run.stderr
+    assert run.returncode == 2 and "stage_confidence must be in (0, 1)" in run.stderr, run.stderr
+    assert len(run.stderr.strip().splitlines()) == 1, run.stderr
 
 
 def test_report_refuses_a_scheme_the_model_lacks(tiny_tcc_run, tmp_path):

@@ -13,10 +13,9 @@ from inest_reward_node.learning.quality import (
     event_flags,
     false_completions,
     negative_events,
-    parse_scorer_option,
     rank_correlation,
     record_negatives,
-    scorer_arguments,
+    reward_config,
     switch_dips,
     within_subtask_spearman,
 )
@@ -161,30 +160,17 @@ def test_scorer_options_reach_the_reward_scorer(tiny_model, tiny_demos, monkeypa
     assert seen == [{"num_envs": 2}]
     assert result.within_shaping.shape == (3,) and result.dips.shape == (3,) and result.lags.shape == (3,)
     # the shaping term is the reward without the bonus
-    np.testing.assert_allclose(result.replay.distance + result.replay.bonus, result.replay.rewards)
+    np.testing.assert_allclose(result.replay.shaping + result.replay.bonus, result.replay.rewards)
 
 
-def test_parse_scorer_option():
-    assert parse_scorer_option("shaping=thesis") == ("shaping", "thesis")
-    assert parse_scorer_option("hold_steps=3") == ("hold_steps", 3)
-    assert parse_scorer_option('config={"tracker": "threshold"}') == ("config", {"tracker": "threshold"})
-    with pytest.raises(Exception, match="key=value"):
-        parse_scorer_option("no-equals")
-
-
-def test_scorer_arguments_build_the_reward_config():
-    arguments = scorer_arguments({"shaping": "thesis", "tracker": "threshold", "num_envs": 2})
-    assert arguments == {"num_envs": 2, "config": RewardConfig(shaping="thesis", tracker="threshold")}
-    arguments = scorer_arguments({"config": {"shaping": "thesis"}, "hold_steps": 2})
-    assert arguments["config"] == RewardConfig(shaping="thesis", hold_steps=2)
-    with pytest.raises(
-        ScorerOptionError, match=r"unknown scorer option 'stage_evidnce' \(did you mean stage_evidence\?\)"
-    ):
-        scorer_arguments({"stage_evidnce": "pixels"})
-    with pytest.raises(ScorerOptionError, match=r"unknown scorer option 'no_such_option'; the options are .*tracker"):
-        scorer_arguments({"no_such_option": 1})
-    with pytest.raises(ScorerOptionError, match="shaping"):
-        scorer_arguments({"shaping": "nonsense"})
+def test_reward_settings_build_the_reward_config():
+    assert reward_config({"shaping": "thesis", "tracker": "threshold"}) == RewardConfig(
+        shaping="thesis", tracker="threshold"
+    )
+    with pytest.raises(ScorerOptionError, match=r"unknown reward setting\(s\) \['stage_evidnce'\]"):
+        reward_config({"stage_evidnce": "pixels"})
+    with pytest.raises(ScorerOptionError, match="unknown reward shaping 'nonsense'"):
+        reward_config({"shaping": "nonsense"})
 
 
 def test_the_report_replays_a_pixel_stage_tracker_on_the_frames(tiny_model, tiny_demos, negatives):

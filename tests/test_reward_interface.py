@@ -78,7 +78,7 @@ class DistanceToFinalGoal(LearnedReward):
 
     name: ClassVar[str] = "final_goal"
 
-    def distance(self, batch: Batch) -> np.ndarray:
+    def shaping(self, batch: Batch) -> np.ndarray:
         return -np.linalg.norm(batch.embeddings - self.goals.goals[-1], axis=1)
 
 
@@ -103,6 +103,8 @@ def test_the_gymnasium_wrapper_puts_the_learned_reward_on_an_environment_the_pro
         frames.append(env.unwrapped.render())
         rewards.append(reward)
         assert info["env_reward"] == 1.0 and 0 <= info["learned_stage"] <= 3 and not (terminated or truncated)
+        parts = (info["shaping_reward"], info["subtask_bonus"], info["intrinsic_reward"])  # the training envs' keys
+        assert sum(parts) == pytest.approx(reward)
     fresh = RewardScorer(model, 3)  # the same frames through a fresh scorer: the same rewards
     expected = [float(fresh.score(frame[None]).total[0]) for frame in frames]
     np.testing.assert_allclose(rewards, expected, rtol=1e-6)

@@ -81,7 +81,7 @@ def test_bonus_per_completed_subtask_and_constant_reward_after_the_last():
     assert parts.completed[0] == 3
     for x in (20.0, -50.0):  # after the last subtask: the bonus alone, wherever the frame is
         parts = scorer.score_embeddings(at(x))
-        assert parts.total[0] == 6.0 and parts.distance[0] == 0.0
+        assert parts.total[0] == 6.0 and parts.shaping[0] == 0.0
     scorer.reset(0)
     assert scorer.score_embeddings(at(20.0)).completed[0] == 0  # the tracker restarts per episode
 
@@ -119,7 +119,7 @@ TODAY = {
               3.503834214528647, 3.778464867310612, 5.17672187398964, 3.7998645103465427, 3.842858325316271,
               6.380883389988587, 5.575683779394064, 5.956721797695695, 6.396893379374201, 6.039958474040032, 6.0,
               12.0, 6.0],
-    "distance": [-0.07518091734037219, -0.011535094542415593, -0.0032780497164141406, -0.20013548965345718,
+    "shaping": [-0.07518091734037219, -0.011535094542415593, -0.0032780497164141406, -0.20013548965345718,
                  -0.1986382181399582, -0.0961657854713528, -0.011535094542415593, -0.0032780497164141397,
                  -0.20013548965345718, -0.19714594893280596, -0.4591167625993038, -0.024316220605936245,
                  -0.0032780497164141458, -0.0031066206257996712, 0.0, 0.0, 0.0, 0.0],

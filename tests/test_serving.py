@@ -98,22 +98,28 @@ def test_reset_restarts_the_tracker_and_accepts_a_restarted_clock():
     streams.scorer.trackers[0].completed = 2
     streams.submit(0, 50, FRAMES[0])
     first = streams.flush()[0]
-    assert (first.subtask, first.episode_frame) == (2, 1)
+    assert (first.completed, first.episode_frame) == (2, 1)
     for _ in range(2):  # a frame and its re-publish: the cached reward, the same count
         streams.submit(0, 51, FRAMES[1])
         assert streams.flush()[0].episode_frame == 2
     streams.reset(0)
     streams.submit(0, 1, FRAMES[0])  # a simulator that restarted: its clock starts over
     result = streams.flush()[0]
-    assert result.subtask == 0 and not streams.stats.rejected
+    assert result.completed == 0 and not streams.stats.rejected
     assert result.episode_frame == 1  # counted from the episode's start again: what tells the agent
 
 
-def test_frames_of_any_size_are_resized_to_the_encoder_input():
+def test_a_frame_is_fitted_once_on_arrival_and_never_again():
+    """decode_image fits a frame to the encoder input; the streams and the encoder take it as it is."""
     streams = StreamScorer(scorer(1))
     big = np.repeat(np.repeat(FRAMES[0], 2, axis=0), 2, axis=1)  # 64 px
-    streams.submit(0, 1, big)
-    assert streams.pending[0][0].frame.shape == (32, 32, 3)
+    with pytest.raises(ValueError, match="fit it to the encoder's 32x32 input first"):
+        streams.submit(0, 1, big)
+    data, step = encode_rgb(big)
+    fitted = decode_image("rgb8", 64, 64, step, data, 32)
+    streams.submit(0, 1, fitted)
+    assert streams.pending[0][0].frame is fitted
+    np.testing.assert_allclose(streams.flush()[0].total, alone(big[None])[0], rtol=1e-5)  # as the encoder fits it
 
 
 def test_zero_stamps_are_scored_as_new_frames_with_one_warning():
@@ -143,9 +149,9 @@ def test_a_backward_jump_starts_a_new_episode_on_that_stream():
     streams.submit(0, 2_000_000_000, FRAMES[0])
     streams.submit(1, 2_000_000_000, FRAMES[1])
     before = streams.submit(0, 1_000_000_000, FRAMES[2])  # the clock went back 1 s
-    assert sorted((r.stream, r.subtask) for r in before) == [(0, 2), (1, 2)]  # the old episode's frames first
+    assert sorted((r.stream, r.completed) for r in before) == [(0, 2), (1, 2)]  # the old episode's frames first
     assert [tracker.completed for tracker in streams.scorer.trackers] == [0, 2]  # only the jumping stream's reset
-    assert [(r.stamp, r.subtask) for r in streams.flush()] == [(1_000_000_000, 0)]
+    assert [(r.stamp, r.completed) for r in streams.flush()] == [(1_000_000_000, 0)]
     assert streams.stats.stamp_resets == 1 and not streams.stats.rejected and not streams.stats.dropped
     assert streams.log.take() == [("warning", "stream 0: stamp went back 1.000 s: a new episode (tracker reset)")]
 
@@ -193,7 +199,7 @@ def test_a_640x480_frame_scores_like_its_centre_480x480_crop():
         ("centre", wide[:, :, 80:560], "crop"),
         ("squash", wide, "squash"),
     ):
-        streams = StreamScorer(scorer(1), max_pending=10, resize=resize)
+        streams = StreamScorer(scorer(1), max_pending=10)
         for index, frame in enumerate(frames):
             data, step = encode_rgb(frame, "bgr8")
             streams.submit(0, index + 1, decode_image("bgr8", *frame.shape[:2], step, data, 32, resize))

@@ -71,7 +71,7 @@ def test_segment_shaping_rises_within_every_subtask_and_never_dips_at_a_switch(s
     for frame in switches:  # at a switch: bonus x (c + 1 + closeness to the next goal), above the frame before
         assert total[frame] >= total[frame - 1]
         assert total[frame] - total[frame - 1] < 1.0  # no jump of a whole bonus either
-    assert total[-1] == pytest.approx(6.0) and steps[-1].distance[0] == 0.0  # B K once done
+    assert total[-1] == pytest.approx(6.0) and steps[-1].shaping[0] == 0.0  # B K once done
     # before the first completion the reward is B x closeness to goal 0: 1 - d / 10
     assert total[0] == pytest.approx(2.0 * (1 - 9.0 / 10.0))
 

@@ -6,15 +6,16 @@ from __future__ import annotations
 import re
 from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import yaml
+from inest_common.settings import CHOICES, build_settings, check_choices
 from inest_reward_node.learning.runs import merge_settings
 from inest_reward_node.runtime.config import RewardConfig
 from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 from inest_reward_node.runtime.methods import REWARD_METHODS
 from inest_reward_node.runtime.model import TCC_SCHEMES
-from inest_sim_node.config import ORACLE_REWARDS
+from inest_sim_node.config import ORACLE_REWARDS, VIEWS
 from inest_sim_node.observation import STATE_OBSERVATIONS
 from inest_sim_node.scoring import NUM_BLOCKS
 
@@ -22,9 +23,14 @@ from .learners import LEARNERS
 
 LEARNER_NAMES = tuple(LEARNERS)
 
-# env: the simulator's own; the learned methods (runtime.methods.REWARD_METHODS); topic: served by
-# inest_reward_node (graph only)
-REWARDS = ("env", *REWARD_METHODS, "topic")
+
+def reward_names() -> tuple[str, ...]:
+    """env: the simulator's own; the learned methods (runtime.methods.REWARD_METHODS, read at each
+    call: a method registered later counts); topic: served by inest_reward_node (graph only)."""
+    return ("env", *REWARD_METHODS, "topic")
+
+
+REWARDS = reward_names()
 
 
 def reward_scheme(reward: str, subtasks: int) -> int:
@@ -53,14 +59,6 @@ def read_yaml_mapping(path: str | Path, what: str, empty_ok: bool = False) -> di
     return data
 
 
-def nested(cls: type, values: Any, what: str) -> Any:
-    """A nested settings dataclass from its YAML mapping (a dataclass already made passes through)."""
-    if not isinstance(values, dict):
-        return values
-    reject_unknown(values, {f.name for f in fields(cls)}, what)
-    return cls(**values)
-
-
 def reject_unknown(data: dict[str, Any], known: set[str], what: str) -> None:
     unknown = sorted(set(data) - known, key=str)
     if unknown:
@@ -82,7 +80,7 @@ class SacConfig:
     train_freq: int = 1  # vector steps between updates
     gradient_steps: int = 2  # per update: 2 per vector step of 4 environments, a replay ratio of 0.5
     net_arch: tuple[int, ...] = (256, 256)
-    ent_coef: str = "auto"
+    ent_coef: str = "auto"  # the entropy coefficient: auto (tuned to a target entropy) or a number as text
 
     def __post_init__(self) -> None:
         for name in ("learning_rate", "buffer_size", "batch_size", "train_freq"):
@@ -106,10 +104,11 @@ SPEED_ONLY_SETTINGS = frozenset({"reward_batch_steps", "overlap_updates", "check
 
 @dataclass(frozen=True)
 class TrainConfig:
-    reward: str = "inest"  # env (oracle) | xirl | holdr | reds | inest | topic (the reward node's, over the graph)
+    # env (the oracle), a learned method (xirl, holdr, reds, inest) or topic (the reward node's, over the graph)
+    reward: str = field(default="inest", metadata={CHOICES: reward_names})
     model: str | None = None  # reward model folder (inest-pretrain's model/); not used by "env"
-    subtasks: int = 3  # inest: 1, 3 or 6; reds: the segmentation its model was trained on
-    view: str = "ego"
+    subtasks: Literal[TCC_SCHEMES] = 3  # inest: 1, 3 or 6; reds: the segmentation its model was trained on
+    view: Literal[VIEWS] = "ego"  # the camera the learned reward reads
     intrinsic: IntrinsicConfig = field(default_factory=IntrinsicConfig)
     # how the learned reward shapes and tracks subtasks (runtime.config.RewardConfig: shaping, tracker,
     # stage_source "privileged" for the true-stage diagnostic, intrinsic_cap)
@@ -117,22 +116,23 @@ class TrainConfig:
     # robot: what a robot senses (no score, no in-goal flags) plus the reward's stage one-hot and the
     # stage block's offsets (Markov in the staged reward; observation.py); stage: the same on the
     # whole simulator state, score included (the earlier default); state: the bare 21-entry state
-    observation: str = "robot"
-    oracle: str = "approach"  # the simulator's reward (reward env): progress | approach (+ reach and hold)
-    learner: str = "sbx_sac"  # learners.LEARNERS: sac | sbx_sac | crossq | sbx_crossq | sbx_droq
-    num_envs: int = 4
+    observation: Literal[STATE_OBSERVATIONS] = "robot"
+    # the simulator's reward (reward env): progress, or approach (progress plus reach and hold)
+    oracle: Literal[ORACLE_REWARDS] = "approach"
+    learner: Literal[LEARNER_NAMES] = "sbx_sac"  # the off-policy learner (learners.py)
+    num_envs: int = 4  # environments stepped side by side
     # vector steps whose frames are scored in one encoder pass (speed only; see envs.RewardVecEnv);
     # the stage observation needs each step's stage at once, so only 1 goes with it
     reward_batch_steps: int = 1
-    total_steps: int = 200_000
-    eval_every: int = 10_000
-    eval_episodes: int = 50
-    final_eval_episodes: int = 150
-    checkpoint_every: int = 20_000
+    total_steps: int = 200_000  # environment steps, over all environments
+    eval_every: int = 10_000  # steps between the learning curve's evaluations (validation layouts)
+    eval_episodes: int = 50  # episodes per learning-curve evaluation
+    final_eval_episodes: int = 150  # episodes of the final evaluation, on test and on validation layouts
+    checkpoint_every: int = 20_000  # steps between checkpoints ...
     # and at least this often, so that a killed run loses minutes, whatever its speed
     checkpoint_minutes: float = 5.0
     seed: int = 0
-    threads: int = 2
+    threads: int = 2  # torch's (and JAX's) CPU threads
     # run each update while the environments take the next step (learners.OverlappedUpdatesMixin;
     # the action then comes from a policy one update older): in process on a second thread, over
     # the graph while the simulators and the reward node work
@@ -145,27 +145,18 @@ class TrainConfig:
     # next episodes in which the reward claimed a stage are labelled (the simulator standing in for
     # a person) and the stage classifier is refitted with them; (): none
     label_at: tuple[int, ...] = ()
-    label_episodes: int = 5
+    label_episodes: int = 5  # episodes labelled at each of label_at
     # the labelled episodes also raise the completion thresholds (stage_refit.py), as random play
     # raises them at calibration; False: they refit the stage classifier only
     label_raise_thresholds: bool = True
     sac: SacConfig = field(default_factory=SacConfig)
 
     def __post_init__(self) -> None:
-        if self.reward not in REWARDS:
-            raise ValueError(f"unknown reward {self.reward!r}; expected one of {REWARDS}")
+        check_choices(self)
         if self.reward not in ("env", "topic") and not self.model:
             raise ValueError(f"the {self.reward} reward needs a reward model folder (model)")
-        if self.subtasks not in TCC_SCHEMES:
-            raise ValueError(f"subtasks must be one of {TCC_SCHEMES}, got {self.subtasks!r}")
         if self.reward != "inest" and self.intrinsic.mode != "none":
             raise ValueError(f"the intrinsic bonus belongs to the inest reward, not {self.reward}")
-        if self.observation not in STATE_OBSERVATIONS:
-            raise ValueError(f"unknown observation {self.observation!r}; expected one of {STATE_OBSERVATIONS}")
-        if self.learner not in LEARNER_NAMES:
-            raise ValueError(f"unknown learner {self.learner!r}; expected one of {LEARNER_NAMES}")
-        if self.oracle not in ORACLE_REWARDS:
-            raise ValueError(f"unknown oracle {self.oracle!r}; expected one of {ORACLE_REWARDS}")
         if self.learned_reward.stage_source == "privileged" and reward_scheme(self.reward, self.subtasks) == 6:
             raise ValueError(
                 "stage_source 'privileged' (a diagnostic) knows the true stage of the 1- and 3-subtask schemes only"
@@ -218,25 +209,10 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
-        reject_unknown(data, {f.name for f in fields(cls)}, "training setting(s)")
         values = dict(data)
         if values.get("reward", "inest") != "inest" and "intrinsic" not in values:
-            values["intrinsic"] = IntrinsicConfig(mode="none")  # the bonus belongs to the inest reward
-        if isinstance(values.get("sac"), dict) and "net_arch" in values["sac"]:
-            values["sac"] = {**values["sac"], "net_arch": tuple(values["sac"]["net_arch"])}
-        if isinstance(values.get("label_at"), list):
-            values["label_at"] = tuple(values["label_at"])
-        try:
-            values["intrinsic"] = nested(
-                IntrinsicConfig, values.get("intrinsic", IntrinsicConfig()), "intrinsic setting(s)"
-            )
-            values["learned_reward"] = nested(
-                RewardConfig, values.get("learned_reward", RewardConfig()), "learned_reward setting(s)"
-            )
-            values["sac"] = nested(SacConfig, values.get("sac", SacConfig()), "sac setting(s)")
-            return cls(**values)
-        except TypeError as error:  # a setting of the wrong type, e.g. a string where a number belongs
-            raise ValueError(f"a training setting has the wrong type ({error})") from None
+            values["intrinsic"] = {"mode": "none"}  # the bonus belongs to the inest reward
+        return build_settings(cls, values, "training setting(s)")
 
     @classmethod
     def from_yaml(cls, path: str | Path, overrides: dict[str, Any] | None = None) -> TrainConfig:

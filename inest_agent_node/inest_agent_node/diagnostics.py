@@ -12,12 +12,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from inest_reward_node.runtime.reward_parts import INFO_KEYS, LEARNED_STAGE
 from inest_sim_node.observation import claimed_blocks
 
-from .envs import BONUS, INTRINSIC, LEARNED_STAGE, SHAPING, TRUE_PROGRESS
+from .envs import TRUE_PROGRESS
 
-PARTS = {"shaping": SHAPING, "bonus": BONUS, "intrinsic": INTRINSIC, "env_reward": "env_reward"}  # info keys
-SHARED_PARTS = ("shaping", "bonus", "intrinsic")  # what the learned reward is the sum of
+SHARED_PARTS = ("shaping", "bonus", "intrinsic")  # what the learned reward is the sum of (RewardParts names)
+# name in results.json (`shaping_per_step`, `shaping_share`) -> info key
+PARTS = {name: INFO_KEYS[name] for name in SHARED_PARTS} | {"env_reward": "env_reward"}
 # a claim this many steps or fewer ahead of its block's placement counts as early, not unplaced
 EARLY_CLAIM_STEPS = 3
 
@@ -100,8 +102,8 @@ class RewardDiagnostics:
             if learned:  # where the novelty bonus pays: in a stage the blocks earned, or in one claimed early
                 unearned = claimed > trace.max_progress
                 self.add("unearned_step", [float(unearned)])
-                if INTRINSIC in info:
-                    self.add(f"intrinsic_{'unearned' if unearned else 'earned'}", [info[INTRINSIC]])
+                if PARTS["intrinsic"] in info:
+                    self.add(f"intrinsic_{'unearned' if unearned else 'earned'}", [info[PARTS["intrinsic"]]])
             if dones[index]:
                 trace.end()
                 episode: dict[str, Any] = {"final_progress": progress, "max_progress": trace.max_progress}

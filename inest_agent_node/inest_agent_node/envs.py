@@ -6,8 +6,8 @@ A learned reward is computed from each environment's camera frame after the step
 transition's next frame, including the last frame of an episode, which auto-reset would
 otherwise replace), all N frames in one encoder forward pass. Every step's infos carry the same
 keys whoever computed the reward (these envs or the graph's): TRUE_PROGRESS, LEARNED_STAGE (the
-reward's stage: the true progress for the environment's reward) and the reward's parts
-(SHAPING, BONUS, INTRINSIC).
+reward's stage: the true progress for the environment's reward) and the reward's parts, under
+the info keys of reward_parts.PARTS.
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from typing import Any
 import gymnasium
 import numpy as np
 from inest_reward_node.learning.task_stages import privileged_stages
-from inest_reward_node.runtime.rewards import RewardFunction, RewardParts, Steps
+from inest_reward_node.runtime.reward_parts import LEARNED_STAGE, RewardParts, info_items
+from inest_reward_node.runtime.rewards import RewardFunction, Steps
 from inest_sim_node.observation import stage_observation, stage_observation_space
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
 
@@ -33,8 +34,6 @@ from .rewards import build_reward
 FRAME_KEY = "camera_frame"
 STAGE_FRAME_KEY = "stage_camera_frame"  # the stage head's camera, when it is not the encoder's
 TRUE_PROGRESS = "progress"  # blocks placed in order (the simulator's, 0..3)
-LEARNED_STAGE = "learned_stage"  # subtasks the reward counts as done (0..num_subtasks)
-SHAPING, BONUS, INTRINSIC = "shaping_reward", "subtask_bonus", "intrinsic_reward"
 
 
 class CameraFrameInInfo(gymnasium.Wrapper):
@@ -187,9 +186,7 @@ class RewardVecEnv(VecEnvWrapper):
                 self.visited.append(parts.embeddings)
             self.steps += 1
             for index, info in enumerate(step.infos):
-                info[LEARNED_STAGE] = int(parts.completed[index])
-                info[SHAPING], info[BONUS] = float(parts.distance[index]), float(parts.bonus[index])
-                info[INTRINSIC] = float(parts.intrinsic[index])
+                info.update(info_items(parts.row(index)))
             self.scored.append(parts.total.astype(np.float32))
         self.waiting.clear()
 

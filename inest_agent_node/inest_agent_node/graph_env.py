@@ -23,7 +23,7 @@ import numpy as np
 from inest_common.rosutil import namespaced, new_executor, ns_stamp, stamp_ns
 from inest_interfaces.msg import Action, EpisodeStatus, Reward
 from inest_interfaces.srv import ResetEpisode
-from inest_sim_node.scoring import NUM_BLOCKS
+from inest_reward_node.runtime.reward_parts import LEARNED_STAGE, info_items, message_parts
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from stable_baselines3.common.vec_env import VecEnv
@@ -31,7 +31,7 @@ from std_srvs.srv import Trigger
 
 from inest_sim_node import SweepToTopEnv
 
-from .envs import BONUS, INTRINSIC, LEARNED_STAGE, SHAPING, TRUE_PROGRESS, UpdateThread
+from .envs import TRUE_PROGRESS, UpdateThread
 from .learners import BROKEN_STEP
 from .pairing import REWARD, STATUS, StepMailbox
 
@@ -135,11 +135,10 @@ class GraphVecEnv(VecEnv):
 
     def step_info(self, status: EpisodeStatus, reward: Reward) -> dict[str, Any]:
         """A step's info: the simulator's reward and score, and the learned reward's stage and parts."""
-        progress = round(status.score * NUM_BLOCKS)
+        progress = status.blocks_in_order
         info: dict[str, Any] = {"env_reward": status.env_reward, "score": status.score, TRUE_PROGRESS: progress}
         if self.learned_reward:
-            info[LEARNED_STAGE], info[INTRINSIC] = reward.subtask, reward.intrinsic_bonus
-            info[SHAPING], info[BONUS] = reward.distance_reward, reward.subtask_bonus
+            info.update(info_items(message_parts(reward)))
         else:  # the environment's reward: its stage is the true progress
             info[LEARNED_STAGE] = progress
         return info

@@ -19,7 +19,7 @@ Neither touches `learn()`, `collect_rollouts()` or the policy; what runs around 
 (progress, evaluation, diagnostics, checkpoints) is callbacks.py's stable-baselines3 callbacks.
 
 JAX is imported only when an SBX learner is picked (`learner_class`), so the PyTorch path never
-pays its import time (~4 s with sbx) nor starts its thread pools; call `configure_jax_threads`
+pays its import time nor starts its thread pools; call `configure_jax_threads`
 before that.
 """
 

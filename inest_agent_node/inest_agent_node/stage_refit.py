@@ -8,7 +8,7 @@ its clip files: a person's labels are not thrown away) and both sources' frames 
 labelled episodes also raise the completion thresholds (unless `label_raise_thresholds` is
 off), as calibration raises them against random play (learning/calibrate.py
 `raised_threshold`): the embedding alone does not tell a policy's false completions from true
-ones, the thresholds do (docs/robot-reward.md). The training and evaluation rewards read the
+ones, the thresholds do (docs/reports/robot-reward.md). The training and evaluation rewards read the
 result from the next step on, and the model it makes is saved in RUN/reward-model/, which
 `inest-evaluate` then scores with, its supervision record counting what it was fitted on.
 Embedding stage evidence only (the pixel stage head takes minutes to fit).

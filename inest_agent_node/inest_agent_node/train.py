@@ -24,24 +24,19 @@ import numpy as np
 import torch
 import yaml
 from inest_common.files import RunFileError, read_json, read_run_file, write_atomic
+from inest_common.settings import add_setting_flags
 from inest_reward_node.learning.coverage import measure_coverage, plot_coverage
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings, prepare_run_dir
-from inest_reward_node.runtime.config import SHAPINGS, STAGE_EVIDENCE, STAGE_FILTERS, STAGE_SOURCES
-from inest_reward_node.runtime.intrinsic import INTRINSIC_MODES
-from inest_reward_node.runtime.model import TCC_SCHEMES, ModelError, load_model
-from inest_reward_node.runtime.trackers import TRACKERS
-from inest_sim_node.config import ORACLE_REWARDS
-from inest_sim_node.observation import STATE_OBSERVATIONS
+from inest_reward_node.runtime.model import ModelError, load_model
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, unwrap_vec_wrapper
 
 from .callbacks import training_callbacks
-from .config import REWARDS, SPEED_ONLY_SETTINGS, TrainConfig, setting_defaults
+from .config import SPEED_ONLY_SETTINGS, TrainConfig, setting_defaults
 from .envs import ConcurrentUpdatesVecEnv, RewardVecEnv, build_env
 from .evaluate import TEST, VALIDATION, EvalResult, Layouts, evaluate_vec_env, format_table, plot_learning_curve
 from .labelled_rollouts import RolloutLabelling
 from .learners import (
-    LEARNERS,
     OverlappedUpdatesMixin,
     RewardBatchingMixin,
     build_learner_class,
@@ -328,11 +323,6 @@ def check_resume(run_dir: Path, resume: bool, start_over: bool) -> None:
         raise ValueError("resume and start over exclude each other")
     if resume and not (run_dir / CONFIG_FILE).is_file():
         raise RunFileError(f"nothing to resume in {run_dir}: it holds no earlier run ({CONFIG_FILE})")
-    if resume and not has_checkpoint(run_dir) and (run_dir / CHECKPOINT_DIR / "replay_buffer.pkl").exists():
-        raise RunFileError(
-            f"cannot resume {run_dir}: its checkpoint is in an older format (a pickled replay buffer), "
-            "which is no longer loaded: it could run code"
-        )
     if resume and not has_checkpoint(run_dir):
         raise RunFileError(
             f"nothing to resume in {run_dir}: the run stopped before its first checkpoint; "
@@ -368,19 +358,9 @@ def reference_curve(runs_root: Path) -> list[list[float]] | None:
     return None
 
 
-INTEGER_FLAGS = (
-    "total_steps",
-    "num_envs",
-    "reward_batch_steps",
-    "eval_every",
-    "eval_episodes",
-    "final_eval_episodes",
-    "checkpoint_every",
-    "seed",
-    "threads",
-    "refit_every",
-    "label_episodes",
-)
+# the command line's names of settings whose flag is not their dotted path's (add_setting_flags)
+TRAIN_FLAG_PREFIXES = {"learned_reward": "", "sac": ""}
+TRAIN_FLAG_NAMES = {"intrinsic.mode": "intrinsic"}
 
 
 def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]:
@@ -388,121 +368,32 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     parser.add_argument("--out", help="run folder (required unless --print-config)")
     parser.add_argument("--config", help="YAML file of training settings (see inest_agent_node/config/train.yaml)")
     parser.add_argument(
-        "--print-config",
-        action="store_true",
-        help="print every setting these arguments give, defaults included, as YAML and exit",
+        "--print-config", action="store_true", help="print every setting these arguments give, as YAML, and exit"
     )
     resuming = parser.add_mutually_exclusive_group()
     resuming.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     resuming.add_argument(
         "--start-over",
         action="store_true",
-        help="train the run in --out again from step 0: one that stopped before its first checkpoint",
+        help="train the run in --out again from step 0 (stopped before its first checkpoint)",
     )
-    parser.add_argument("--reward", choices=REWARDS)
-    parser.add_argument("--model", help="reward model folder (a pretraining run's model/)")
-    parser.add_argument(
-        "--refit-demos",
-        help="with --refit-every or --label-at: the dataset whose demonstrations anchor the refitted classifier",
-    )
-    parser.add_argument("--subtasks", type=int, choices=TCC_SCHEMES)
-    parser.add_argument("--intrinsic", choices=INTRINSIC_MODES)
-    parser.add_argument(
-        "--intrinsic-weight",
-        type=float,
-        help="the novelty bonus's weight; twice it for the steps after a subtask switch (thesis: 0.2, 0.4)",
-    )
-    parser.add_argument("--view", choices=("ego", "allo"))
-    parser.add_argument(
-        "--observation",
-        choices=STATE_OBSERVATIONS,
-        help="robot (default): what a robot senses and the reward's stage; stage: the same on the whole "
-        "simulator state, score included; state: the bare state vector",
-    )
-    parser.add_argument("--learner", choices=tuple(LEARNERS), help="off-policy learner (learners.py)")
-    parser.add_argument("--shaping", choices=SHAPINGS, help="learned reward shaping (runtime.config.RewardConfig)")
-    parser.add_argument("--tracker", choices=TRACKERS, help="learned reward subtask tracker")
-    parser.add_argument(
-        "--stage-source", choices=STAGE_SOURCES, help="privileged: stage and bonus from the true progress (diagnostic)"
-    )
-    parser.add_argument(
-        "--stage-evidence",
-        choices=STAGE_EVIDENCE,
-        help="what the confirmed tracker reads: auto (the pixel stage head if the model has one), pixels, "
-        "embedding, window (a classifier over the frame and frames before it)",
-    )
-    parser.add_argument(
-        "--confirm-steps", type=int, help="frames the confirmed tracker's stage evidence must agree (0: hold_steps)"
-    )
-    parser.add_argument("--stage-confidence", type=float, help="P(stage >= j) at which the stage evidence agrees")
-    parser.add_argument(
-        "--stage-filter", choices=STAGE_FILTERS, help="forward: the tracker reads a causal filter over the stages"
-    )
-    parser.add_argument("--filter-advance", type=float, help="the stage filter's chance per frame of one stage up")
-    parser.add_argument("--filter-temperature", type=float, help="the power the filter raises each frame's evidence to")
-    parser.add_argument(
-        "--instant-confidence", type=float, help="P(stage >= j) at which one frame confirms a completion (1: off)"
-    )
-    parser.add_argument("--oracle", choices=ORACLE_REWARDS, help="the simulator's reward, used by --reward env")
-    parser.add_argument(
-        "--overlap-updates",
-        action=argparse.BooleanOptionalAction,
-        help="run each update on a second thread while the environments step (faster on 2 cores)",
-    )
-    for name in INTEGER_FLAGS:
-        parser.add_argument(f"--{name.replace('_', '-')}", type=int)
-    parser.add_argument(
-        "--label-raise-thresholds",
-        action=argparse.BooleanOptionalAction,
-        help="the episodes labelled in the loop also raise the completion thresholds (default: yes)",
-    )
-    parser.add_argument(
-        "--label-at",
-        type=int,
-        nargs="+",
-        metavar="STEP",
-        help="steps at which --label-episodes of the agent's episodes are labelled and refitted on "
-        "(needs --refit-demos)",
-    )
-    parser.add_argument(
-        "--gradient-steps", type=int, help="gradient steps per vector step (sac.gradient_steps; the replay ratio)"
+    settings = add_setting_flags(
+        parser.add_argument_group("training settings (TrainConfig; a flag overrides --config)"),
+        TrainConfig,
+        prefixes=TRAIN_FLAG_PREFIXES,
+        flags=TRAIN_FLAG_NAMES,
     )
     args = parser.parse_args(argv)
     if args.out is None and not args.print_config:
         parser.error("the following arguments are required: --out")
-    overrides: dict[str, Any] = {
-        name: getattr(args, name)
-        for name in (
-            *("reward", "model", "subtasks", "view", "observation", "oracle", "learner", "overlap_updates"),
-            *("refit_demos", "label_raise_thresholds"),
-            *INTEGER_FLAGS,
-        )
-        if getattr(args, name) is not None
-    }
-    learned = {
-        name: getattr(args, name)
-        for name in (
-            *("shaping", "tracker", "stage_source", "stage_evidence", "stage_filter"),
-            *("confirm_steps", "stage_confidence", "instant_confidence", "filter_advance", "filter_temperature"),
-        )
-        if getattr(args, name) is not None
-    }
-    if args.label_at is not None:
-        overrides["label_at"] = tuple(args.label_at)
-    if learned:
-        overrides["learned_reward"] = learned
-    if args.gradient_steps is not None:
-        overrides["sac"] = {"gradient_steps": args.gradient_steps}
-    if args.intrinsic is not None:
-        overrides["intrinsic"] = {"mode": args.intrinsic}
-    elif overrides.get("reward", "inest") != "inest":
-        overrides["intrinsic"] = {"mode": "none"}  # --reward env|xirl|holdr on an inest config file
-    if args.intrinsic_weight is not None:
-        overrides["intrinsic"] = {
-            **overrides.get("intrinsic", {}),
-            "weight": args.intrinsic_weight,
-            "boosted_weight": 2 * args.intrinsic_weight,
-        }
+    overrides = settings.overrides(args)
+    intrinsic = overrides.setdefault("intrinsic", {})
+    if "mode" not in intrinsic and overrides.get("reward", "inest") != "inest":
+        intrinsic["mode"] = "none"  # --reward env|xirl|holdr on an inest config file
+    if "weight" in intrinsic:
+        intrinsic.setdefault("boosted_weight", 2 * intrinsic["weight"])  # the thesis's doubling after a switch
+    if not intrinsic:
+        del overrides["intrinsic"]
     if args.config:
         return TrainConfig.from_yaml(args.config, overrides), args
     return TrainConfig.from_dict(merge_settings({}, overrides)), args

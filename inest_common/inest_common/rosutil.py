@@ -95,7 +95,7 @@ def reject_unknown_parameters(node: Node) -> None:
 def new_executor() -> Executor:
     """rclpy's EventsExecutor, whose event queue lives in C++: it moves messages between
     processes faster than SingleThreadedExecutor, which rebuilds its wait set on every spin
-    (docs/performance.md). Spin it from the main thread: on a background thread it hung."""
+    (docs/reports/performance.md). Spin it from the main thread: on a background thread it hung."""
     return EventsExecutor()
 
 

@@ -17,6 +17,7 @@ import gymnasium
 import numpy as np
 
 from .runtime.model import load_model
+from .runtime.reward_parts import info_items
 from .runtime.rewards import RewardFunction, RewardScorer
 
 Camera = Callable[[gymnasium.Env], np.ndarray]
@@ -44,7 +45,8 @@ class LearnedRewardWrapper(gymnasium.Wrapper):
     a model folder), scored on the frame after every step: `camera(env)`, by default the
     environment's render, and `stage_camera(env)` when the reward reads a second camera
     (RewardFunction.stage_camera). The environment's own reward stays in info["env_reward"], the
-    learned reward's stage and parts in info["learned_stage"] and info["learned_reward_parts"];
+    learned reward's stage and parts go under the info keys the project's own training
+    environments use (reward_parts.PARTS: info["learned_stage"], info["shaping_reward"], ...);
     every reset starts the reward's new episode."""
 
     def __init__(
@@ -72,12 +74,7 @@ class LearnedRewardWrapper(gymnasium.Wrapper):
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         observation, env_reward, terminated, truncated, info = self.env.step(action)
         stage_frames = None if self.reward.stage_camera is None else self.stage_camera(self.env)[None]
-        parts = self.reward.score(self.camera(self.env)[None], stage_frames)
+        parts = self.reward.score(self.camera(self.env)[None], stage_frames).row(0)
         info["env_reward"] = env_reward
-        info["learned_stage"] = int(parts.completed[0])
-        info["learned_reward_parts"] = {
-            "distance": float(parts.distance[0]),
-            "bonus": float(parts.bonus[0]),
-            "intrinsic": float(parts.intrinsic[0]),
-        }
-        return observation, float(parts.total[0]), terminated, truncated, info
+        info.update(info_items(parts))
+        return observation, parts["total"], terminated, truncated, info

@@ -51,6 +51,7 @@ from .runtime.config import RewardConfig
 from .runtime.images import RESIZE_MODES, ImageRejected, decode_image
 from .runtime.intrinsic import IntrinsicConfig
 from .runtime.model import DEFAULT_MODEL, TCC_SCHEMES, ModelError, encoder_digest, load_model
+from .runtime.reward_parts import message_fields
 from .runtime.rewards import RewardScorer
 from .runtime.serving import ScoredFrame, StreamScorer, ThrottledLog
 
@@ -125,7 +126,7 @@ class RewardNode(Node):
         scorer = self.new_scorer(config.model)
         self.model, self.encoder = config.model, encoder_digest(config.model)
         self.log = ThrottledLog(config.log_period)
-        self.streams = StreamScorer(scorer, config.max_pending, config.backward_stamps, config.resize, self.log)
+        self.streams = StreamScorer(scorer, config.max_pending, config.backward_stamps, self.log)
         qos = QoSProfile(depth=10)
         self.reward_pubs, self.total_pubs, self.subtask_pubs = [], [], []
         for index, namespace in enumerate(config.streams):
@@ -245,23 +246,21 @@ class RewardNode(Node):
 
     def publish(self, scored: list[ScoredFrame]) -> None:
         for frame in scored:
-            msg = Reward()
+            msg = Reward(
+                **message_fields(vars(frame)),
+                num_subtasks=self.streams.scorer.num_subtasks,
+                episode_frame=frame.episode_frame,
+                model_generation=frame.model_generation,
+            )
             msg.header.stamp = ns_stamp(frame.stamp)
             msg.header.frame_id = frame.frame_id
-            msg.total, msg.distance_reward = frame.total, frame.distance
-            msg.subtask_bonus, msg.intrinsic_bonus = frame.bonus, frame.intrinsic
-            msg.subtask, msg.num_subtasks = frame.subtask, self.streams.scorer.num_subtasks
-            msg.subtask_completed = frame.completed_subtask
-            msg.episode_frame = frame.episode_frame
-            msg.stage_confidence = frame.stage_confidence
-            msg.model_generation = frame.model_generation
             self.reward_pubs[frame.stream].publish(msg)
             # the plain-number copies are for plots and recorders: published only while one listens,
             # since two more messages per frame cost the training graph (the agent reads `reward`)
             if self.total_pubs[frame.stream].get_subscription_count():
                 self.total_pubs[frame.stream].publish(Float32(data=frame.total))
             if self.subtask_pubs[frame.stream].get_subscription_count():
-                self.subtask_pubs[frame.stream].publish(Int32(data=frame.subtask))
+                self.subtask_pubs[frame.stream].publish(Int32(data=frame.completed))
 
     def publish_diagnostics(self) -> None:
         self.write_log()  # the counts of floods that have stopped

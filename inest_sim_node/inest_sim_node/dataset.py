@@ -170,10 +170,6 @@ class DemoDataset:
         entry = entries[index]
         return read_episode(self.root / entry["file"], entry["sha256"])
 
-    def iter_split(self, split: str):
-        for index in range(len(self.entries(split))):
-            yield self.load(split, index)
-
     def content_hash(self) -> str:
         """sha256 over every split's episodes (seed and content hash), the same for the same
         demonstrations on any machine. A dataset collected before content hashes were recorded

@@ -121,7 +121,7 @@ class SceneRenderer:
         return linear, anchor - linear @ np.array([x, y])
 
     def _blank(self, size: int) -> np.ndarray:
-        """The background colour at `size`; copying it is 20x faster than filling a new image."""
+        """The background colour at `size`; copying it is faster than filling a new image."""
         blank = self._blanks.get(size)
         if blank is None:
             blank = np.empty((size, size, 3), dtype=np.uint8)

@@ -203,10 +203,6 @@ class World:
         """How far each block's bounding box still sticks out below the goal strip (0 = inside)."""
         return np.array([max(0.0, self.config.goal_bottom - shape.bb.bottom) for shape in self.block_shapes])
 
-    def blocks_in_goal(self) -> np.ndarray:
-        """A block counts as in the goal when its bounding box lies wholly inside the strip."""
-        return self.block_goal_gaps() == 0.0
-
     def in_gripper(self, block: int) -> bool:
         """True when the block's centre sits between the fingers, where a grasp holds it."""
         local = self.robot.world_to_local(self.block_bodies[block].position)

@@ -21,13 +21,13 @@ OUT=results/robot-reward/label-budget
 declare -A NEGATIVES=([0]="0 0" [10]="5 5" [50]="30 20")  # random-play, wrong-order episodes
 declare -A FILTERS=(
   [none]=""
-  [forward]="--scorer-option stage_filter=forward"
-  [forward-strict]="--scorer-option stage_filter=forward --scorer-option filter_advance=0.02 --scorer-option filter_temperature=0.3"
+  [forward]="--stage-filter forward"
+  [forward-strict]="--stage-filter forward --filter-advance 0.02 --filter-temperature 0.3"
   # the filter already asks for agreement over frames: one filtered frame confirms
-  [forward-confirm1]="--scorer-option stage_filter=forward --scorer-option confirm_steps=1"
-  [forward-fast-confirm1]="--scorer-option stage_filter=forward --scorer-option filter_advance=0.1 --scorer-option confirm_steps=1"
+  [forward-confirm1]="--stage-filter forward --confirm-steps 1"
+  [forward-fast-confirm1]="--stage-filter forward --filter-advance 0.1 --confirm-steps 1"
 )
-EVIDENCE=(--scorer-option stage_evidence=embedding)  # where the stage is read; the window stage sets its own
+EVIDENCE=(--stage-evidence embedding)  # where the stage is read; the window stage sets its own
 stages=("$@")
 [ ${#stages[@]} -gt 0 ] || stages=(models selection held-out)
 
@@ -81,7 +81,7 @@ for stage in "${stages[@]}"; do
       done ;;
     window)
       mkdir -p "$OUT/selection"
-      EVIDENCE=(--scorer-option stage_evidence=window)
+      EVIDENCE=(--stage-evidence window)
       # 10: the labelling path's file-labelled episodes (labelling_path_timing.sh negatives), raising the thresholds
       declare -A LABELLED=([0]="" [10]="--clips $CLIPS --clips-raise-thresholds")
       for budget in 0 10; do
@@ -91,9 +91,9 @@ for stage in "${stages[@]}"; do
           window_model "$name" "$count" ${LABELLED[$budget]}
           report "$OUT/selection/$name" "runs/ego-labels/$name/model" runs/demos-select --negative-seed-offset 2000000
           report "$OUT/selection/$name-forward" "runs/ego-labels/$name/model" runs/demos-select \
-            --negative-seed-offset 2000000 --scorer-option stage_filter=forward
+            --negative-seed-offset 2000000 --stage-filter forward
           report "$OUT/selection/$name-confirm1" "runs/ego-labels/$name/model" runs/demos-select \
-            --negative-seed-offset 2000000 --scorer-option confirm_steps=1
+            --negative-seed-offset 2000000 --confirm-steps 1
         done
       done
       # the same 10 episodes fitting the classifier only, the thresholds left where the demonstrations

@@ -1,4 +1,4 @@
-"""The Markdown tables of docs/robot-reward.md from the label-budget reports: per labelling budget
+"""The Markdown tables of docs/reports/robot-reward.md from the label-budget reports: per labelling budget
 and stage-evidence setting, red / blue / yellow within-subtask shaping rho (own tracker), misses,
 false completions on random and wrong-order play, and those not merely early; for the labelling
 path (labelling_path_timing.sh, folders with a timings.json), per path the label rows written and

@@ -74,7 +74,7 @@ timed recalibrate "$BIN/inest-pretrain" runs/demos --out "$WORK/refit" --recalib
   --random-episodes 0 --wrong-order-episodes 0 --clips "$LABELLED" "${RAISE[@]}" \
   --stage-head-iterations 0 --threads 1
 timed check "$BIN/inest-reward-quality" "$WORK/refit/model" runs/demos --out "$WORK/quality" --schemes 3 \
-  --scorer-option stage_evidence=embedding --scorer-option stage_filter=forward
+  --stage-evidence embedding --stage-filter forward
 cp "$WORK/quality/report.json" "$WORK/check.log" "$OUT/"
 
 "$BIN/python" - "$WORK" "$OUT/timings.json" "$SOURCE" "${#RAISE[@]}" "$LOAD" "${STEPS[@]}" <<'EOF'

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Every reward-quality report of docs/reward-signal.md, one after another, from the committed
+# Every reward-quality report of docs/reports/reward-signal.md, one after another, from the committed
 # models and the demonstration set of `inest-collect-demos --out runs/demos --episodes 1000`:
 # results/reward-signal/<report>/ (report.json, plots) and the printed table beside it as <report>.txt.
 #   bash scripts/experiments/quality_reports.sh [REPORT ...]   # default: all of them
@@ -9,24 +9,24 @@ cd "$ROOT"
 BIN="${INEST_VENV:-$ROOT/.venv}/bin"
 MODELS=results/long-horizon
 OUT=results/reward-signal
-PIXELS=(--scorer-option stage_evidence=pixels)
-PRIVILEGED=(--scorer-option stage_source=privileged)
-THREE_FRAMES=(--scorer-option instant_confidence=1.0)  # the confirmation without its instant path (the default before 0.9)
+PIXELS=(--stage-evidence pixels)
+PRIVILEGED=(--stage-source privileged)
+THREE_FRAMES=(--instant-confidence 1.0)  # the confirmation without its instant path (the default before 0.9)
 
 declare -A REPORTS=(
   [quality-default]="$MODELS/reward-model --schemes 3 ${THREE_FRAMES[*]}"
-  [quality-thesis]="$MODELS/reward-model --schemes 3 --scorer-option shaping=thesis --scorer-option tracker=threshold"
+  [quality-thesis]="$MODELS/reward-model --schemes 3 --shaping thesis --tracker threshold"
   [quality-pixel]="$MODELS/reward-model-pixel --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
   [quality-scene]="$MODELS/reward-model-scene --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
   [quality-scene96]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
-  [quality-scene96-confirm1]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=1 ${THREE_FRAMES[*]}"
-  [quality-scene96-confirm1-conf08]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=1 --scorer-option stage_confidence=0.8 ${THREE_FRAMES[*]}"
-  [quality-scene96-confirm2]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option confirm_steps=2 ${THREE_FRAMES[*]}"
-  [quality-scene96-instant09]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --scorer-option instant_confidence=0.9"
+  [quality-scene96-confirm1]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --confirm-steps 1 ${THREE_FRAMES[*]}"
+  [quality-scene96-confirm1-conf08]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --confirm-steps 1 --stage-confidence 0.8 ${THREE_FRAMES[*]}"
+  [quality-scene96-confirm2]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --confirm-steps 2 ${THREE_FRAMES[*]}"
+  [quality-scene96-instant09]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} --instant-confidence 0.9"
   [quality-scene96-600demos]="$MODELS/reward-model-scene96-600demos --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
-  [quality-scene96-600demos-instant09]="$MODELS/reward-model-scene96-600demos --schemes 3 ${PIXELS[*]} --scorer-option instant_confidence=0.9"
+  [quality-scene96-600demos-instant09]="$MODELS/reward-model-scene96-600demos --schemes 3 ${PIXELS[*]} --instant-confidence 0.9"
   [quality-scene96-privileged]="$MODELS/reward-model-scene96 --schemes 3 ${PIXELS[*]} ${PRIVILEGED[*]}"
-  [allo-encoder/quality]="$OUT/allo-encoder/model --schemes 1 3 --scorer-option stage_evidence=embedding ${THREE_FRAMES[*]}"
+  [allo-encoder/quality]="$OUT/allo-encoder/model --schemes 1 3 --stage-evidence embedding ${THREE_FRAMES[*]}"
   [allo-encoder/quality-pixels]="$OUT/allo-encoder/model --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
   [quality-allo96]="$MODELS/reward-model-allo96 --schemes 3 ${PIXELS[*]} ${THREE_FRAMES[*]}"
   [quality-allo96-privileged]="$MODELS/reward-model-allo96 --schemes 3 ${PIXELS[*]} ${PRIVILEGED[*]}"

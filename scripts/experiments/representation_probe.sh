@@ -40,7 +40,7 @@ variant() {  # NAME: pretrain, then the reward-quality report with its tracker a
     --iterations "$ITERATIONS" --stage-head-iterations 0 ${INEST_SIZE_FLAGS:-} ${VARIANTS[$name]} >"$name.log" 2>&1
   for stage in tracker privileged; do
     "$PY" -m inest_reward_node.learning.quality "$name/model" demos --out "$name/quality-$stage" --schemes 3 \
-      --negative-episodes "${INEST_NEGATIVES:-40}" --scorer-option "stage_source=$stage" >>"$name.log" 2>&1
+      --negative-episodes "${INEST_NEGATIVES:-40}" --stage-source "$stage" >>"$name.log" 2>&1
   done
 }
 for name in ${INEST_VARIANTS:-base long strong-aug deep resnet18}; do

@@ -21,7 +21,7 @@ declare -A VARIANTS=(
   [demos600]="max_demos=600,iterations=3000"
   [demos600-boundary25]="max_demos=600,iterations=3000,boundary_share=0.25"
 )
-declare -A SETTINGS=([default]="--scorer-option instant_confidence=1.0" [instant09]="--scorer-option instant_confidence=0.9")
+declare -A SETTINGS=([default]="--instant-confidence 1.0" [instant09]="--instant-confidence 0.9")
 variants=()
 for name in boundary25 demos600 demos600-boundary25; do variants+=("$name=${VARIANTS[$name]}"); done
 "$BIN/python" scripts/experiments/stage_head_variants.py "$MODEL" runs/demos runs/head-variants "${variants[@]}"
@@ -31,7 +31,7 @@ score() {  # NAME MODEL
     echo "stage_head_selection: $1 $setting" >&2
     # shellcheck disable=SC2086  # a flag list
     "$BIN/inest-reward-quality" "$2" runs/demos-select --out "$OUT/$1/$setting" --schemes 3 \
-      --scorer-option stage_evidence=pixels --negative-seed-offset 2000000 ${SETTINGS[$setting]} >"$OUT/$1/$setting.txt"
+      --stage-evidence pixels --negative-seed-offset 2000000 ${SETTINGS[$setting]} >"$OUT/$1/$setting.txt"
   done
 }
 for name in boundary25 demos600 demos600-boundary25; do

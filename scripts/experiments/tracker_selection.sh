@@ -13,16 +13,16 @@ OUT=results/reward-signal/tracker-selection
 [ -f runs/demos-select/metadata.json ] \
   || "$BIN/inest-collect-demos" --out runs/demos-select --episodes 250 --valid-fraction 0.4 --seed 5000000 --workers 2
 declare -A SETTINGS=(
-  [default]="--scorer-option instant_confidence=1.0"  # three frames: the default before instant 0.9
-  [confirm1-conf08]="--scorer-option confirm_steps=1 --scorer-option stage_confidence=0.8 --scorer-option instant_confidence=1.0"
-  [instant08]="--scorer-option instant_confidence=0.8"
-  [instant09]="--scorer-option instant_confidence=0.9"
-  [instant095]="--scorer-option instant_confidence=0.95"
+  [default]="--instant-confidence 1.0"  # three frames: the default before instant 0.9
+  [confirm1-conf08]="--confirm-steps 1 --stage-confidence 0.8 --instant-confidence 1.0"
+  [instant08]="--instant-confidence 0.8"
+  [instant09]="--instant-confidence 0.9"
+  [instant095]="--instant-confidence 0.95"
 )
 mkdir -p "$OUT"
 for setting in default confirm1-conf08 instant08 instant09 instant095; do
   echo "tracker_selection: $setting" >&2
   # shellcheck disable=SC2086  # a flag list
   "$BIN/inest-reward-quality" "$MODEL" runs/demos-select --out "$OUT/$setting" --schemes 3 \
-    --scorer-option stage_evidence=pixels --negative-seed-offset 2000000 ${SETTINGS[$setting]} >"$OUT/$setting.txt"
+    --stage-evidence pixels --negative-seed-offset 2000000 ${SETTINGS[$setting]} >"$OUT/$setting.txt"
 done

@@ -4,8 +4,9 @@
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, Literal
 
+from inest_common.settings import check_choices
 from inest_sim_node.config import VIEWS
 
 from ..runtime.encoders import EncoderConfig
@@ -63,7 +64,7 @@ class CalibrationConfig:
     stage_head: StageHeadConfig = field(default_factory=StageHeadConfig)  # the pixel one, same frames
     # the subtask schemes that get a pixel stage head (each costs `stage_head.iterations`); a scheme
     # without one reads the embedding's stage classifier (reward.stage_evidence auto)
-    stage_head_subtasks: tuple[int, ...] = TCC_SCHEMES
+    stage_head_subtasks: tuple[Literal[TCC_SCHEMES], ...] = TCC_SCHEMES
     # the window stage classifier (runtime/stage_window.py): the frames back it reads, () for none;
     # fitted on the same frames as the stage classifier and on `demo_negatives` rewound and as many
     # reordered demonstrations (demo_negatives.py), which need no labels of their own
@@ -71,6 +72,7 @@ class CalibrationConfig:
     demo_negatives: int = 0
 
     def __post_init__(self) -> None:
+        check_choices(self)
         if self.window_offsets:
             check_offsets(self.window_offsets)
         if self.demo_negatives < 0:
@@ -81,8 +83,6 @@ class CalibrationConfig:
             raise ValueError("random_episodes must be >= 0, false_fire_rate in [0, 1], demo_pass_rate in (0, 1]")
         if self.wrong_order_episodes < 0:
             raise ValueError(f"wrong_order_episodes must be >= 0, got {self.wrong_order_episodes}")
-        if not set(self.stage_head_subtasks) <= set(TCC_SCHEMES):
-            raise ValueError(f"stage_head_subtasks must be among {TCC_SCHEMES}, got {self.stage_head_subtasks}")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -90,9 +90,9 @@ class CalibrationConfig:
 
 @dataclass(frozen=True)
 class PretrainConfig:
-    dataset: str
-    method: str = "tcc"
-    view: str = "ego"
+    dataset: str  # the demonstration dataset folder (inest-collect-demos)
+    method: Literal[METHODS] = "tcc"  # the representation: TCC (XIRL, INEST), HOLD-R or REDS
+    view: Literal[VIEWS] = "ego"  # the camera the encoder learns from
     encoder: EncoderConfig = field(default_factory=EncoderConfig)
     holdr: HoldRConfig = field(default_factory=HoldRConfig)
     reds: RedsConfig = field(default_factory=RedsConfig)  # REDS: network, batch and loss settings
@@ -116,11 +116,9 @@ class PretrainConfig:
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
 
     def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
-        for view in (self.view, self.calibration.stage_head.view or self.view):  # the simulator's cameras
-            if view not in VIEWS:
-                raise ValueError(f"unknown view {view!r}; expected one of {VIEWS}")
+        check_choices(self)
+        if self.calibration.stage_head.view not in (None, *VIEWS):  # the simulator's cameras
+            raise ValueError(f"unknown view {self.calibration.stage_head.view!r}; expected one of {VIEWS}")
         for name in ("iterations", "videos_per_batch", "frames_per_video", "pairs_per_batch", "threads"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")

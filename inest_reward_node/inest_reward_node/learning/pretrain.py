@@ -29,12 +29,10 @@ import numpy as np
 import torch
 from inest_common.files import write_atomic
 from inest_common.progress import track
+from inest_common.settings import add_setting_flags, build_settings
 from inest_sim_node.dataset import DatasetError, DemoDataset
 
-from ..runtime.encoders import ENCODER_KINDS, EncoderConfig
 from ..runtime.model import (
-    METHODS,
-    TCC_SCHEMES,
     ModelError,
     ModelMetadata,
     RewardModel,
@@ -43,7 +41,6 @@ from ..runtime.model import (
     load_model,
     save_model,
 )
-from ..runtime.stage_window import DEFAULT_OFFSETS
 from .calibrate import calibrate, supervision
 from .clips import load_clips
 from .config import PretrainConfig
@@ -253,38 +250,25 @@ def pretrain(
     return trainer.train(train, valid, progress_bar)
 
 
-INTEGER_OPTIONS = (
-    "iterations",
-    "videos_per_batch",
-    "frames_per_video",
-    "pairs_per_batch",
-    "validate_every",
-    "checkpoint_every",
-    "train_limit",
-    "valid_limit",
-    "seed",
-    "threads",
-)
-
-# --stage-head-OPTION: (StageHeadConfig field, type, help)
-STAGE_HEAD_OPTIONS: dict[str, tuple[str, type, str]] = {
-    "iterations": ("iterations", int, "training iterations of the pixel stage head (runtime/stage_head.py); 0: none"),
-    "demos": (
-        "max_demos",
-        int,
-        "training demonstrations the pixel stage head is fitted on, with the calibration's play",
-    ),
-    "boundary-share": (
-        "boundary_share",
-        float,
-        "share of the pixel stage head's batches drawn from frames next to a stage change",
-    ),
-    "image-size": ("image_size", int, "pixels a side the pixel stage head sees its frames at"),
+# the command line's names of settings whose flag is not their dotted path's (add_setting_flags)
+PRETRAIN_FLAG_PREFIXES = {
+    "encoder": "",
+    "shaping": "",
+    "calibration": "",
+    "calibration.stage_head": "stage-head-",
+    "calibration.classifier": "classifier-",
+}
+PRETRAIN_FLAG_NAMES = {
+    "encoder.kind": "encoder",
+    "augment.enabled": "augment",
+    "augment.max_shift": "augment-shift",
+    "calibration.percentile": "threshold-percentile",
+    "calibration.window_offsets": "stage-window-offsets",
+    "calibration.stage_head.max_demos": "stage-head-demos",
 }
 
 
 def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespace]:
-    defaults = PretrainConfig(dataset="")
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("dataset", help="demonstration dataset folder (inest-collect-demos)")
     parser.add_argument("--out", required=True, help="run folder")
@@ -295,165 +279,15 @@ def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespa
         help="no training: calibrate the trained encoder of the model folder MODEL anew with the calibration "
         "options given here, into --out/model",
     )
-    parser.add_argument("--method", choices=METHODS, default=defaults.method)
-    parser.add_argument("--view", choices=("ego", "allo"), default=defaults.view)
-    parser.add_argument("--encoder", choices=ENCODER_KINDS, default=defaults.encoder.kind)
-    parser.add_argument("--image-size", type=int, default=defaults.encoder.image_size)
-    parser.add_argument("--embedding-dim", type=int, default=defaults.encoder.embedding_dim)
-    parser.add_argument(
-        "--widths",
-        type=lambda text: tuple(int(width) for width in text.split(",")),
-        default=defaults.encoder.widths,
-        help="small_cnn: channels of its convolutions, comma-separated (default %(default)s)",
+    settings = add_setting_flags(
+        parser.add_argument_group("pretraining settings (PretrainConfig)"),
+        PretrainConfig,
+        prefixes=PRETRAIN_FLAG_PREFIXES,
+        flags=PRETRAIN_FLAG_NAMES,
+        skip=("dataset",),
     )
-    for name in INTEGER_OPTIONS:
-        parser.add_argument(f"--{name.replace('_', '-')}", type=int, default=getattr(defaults, name))
-    parser.add_argument("--learning-rate", type=float, default=defaults.learning_rate)
-    parser.add_argument("--hold-steps", type=int, default=defaults.shaping.hold_steps)
-    parser.add_argument("--threshold-percentile", type=float, default=defaults.calibration.percentile)
-    parser.add_argument("--random-episodes", type=int, default=defaults.calibration.random_episodes)
-    parser.add_argument("--false-fire-rate", type=float, default=defaults.calibration.false_fire_rate)
-    parser.add_argument("--demo-pass-rate", type=float, default=defaults.calibration.demo_pass_rate)
-    parser.add_argument(
-        "--wrong-order-episodes",
-        type=int,
-        default=defaults.calibration.wrong_order_episodes,
-        help="wrong-order expert episodes for the stage classifier (default %(default)s)",
-    )
-    parser.add_argument(
-        "--clips",
-        nargs="+",
-        default=list(defaults.calibration.clips),
-        metavar="FILE",
-        help="labelled clip files (inest-record-clips, inest-label-clips) the stage classifier is also fitted on",
-    )
-    parser.add_argument(
-        "--stage-window-offsets",
-        type=int,
-        nargs="+",
-        default=list(defaults.calibration.window_offsets),
-        metavar="FRAMES",
-        help="fit a window stage classifier on the frames this many steps back, 0 first "
-        f"(e.g. {' '.join(map(str, DEFAULT_OFFSETS))}; reward.stage_evidence window reads it)",
-    )
-    parser.add_argument(
-        "--demo-negatives",
-        type=int,
-        default=defaults.calibration.demo_negatives,
-        help="rewound and as many reordered demonstrations the window classifier is also fitted on "
-        "(no labels needed; default %(default)s)",
-    )
-    parser.add_argument(
-        "--clips-raise-thresholds",
-        action="store_true",
-        help="the clip files' episodes also raise the completion thresholds, as random play does "
-        "(a robot's labelled episodes standing in for the simulator's)",
-    )
-    head_defaults = defaults.calibration.stage_head
-    for option, (setting, kind, text) in STAGE_HEAD_OPTIONS.items():
-        parser.add_argument(
-            f"--stage-head-{option}",
-            type=kind,
-            default=getattr(head_defaults, setting),
-            help=f"{text} (default %(default)s)",
-        )
-    parser.add_argument(
-        "--stage-head-subtasks",
-        type=int,
-        nargs="+",
-        choices=TCC_SCHEMES,
-        default=list(defaults.calibration.stage_head_subtasks),
-        help="the subtask schemes that get a pixel stage head (default: all); the others read the embedding",
-    )
-    parser.add_argument(
-        "--stage-head-view",
-        choices=("ego", "allo"),
-        default=defaults.calibration.stage_head.view,
-        help="the camera the pixel stage head reads (default %(default)s: the scene camera, which always "
-        "sees the goal strip and every block; ego for a dataset or robot with the wrist camera only)",
-    )
-    parser.add_argument(
-        "--reds-subtasks",
-        type=int,
-        choices=(1, 3, 6),
-        default=defaults.reds.subtasks,
-        help="reds: the subtask segmentation it is trained on and conditions on (default %(default)s)",
-    )
-    parser.add_argument(
-        "--reds-frames-per-batch",
-        type=int,
-        default=defaults.reds.frames_per_batch,
-        help="reds: anchor frames per batch, each with its later frame and canonicalisation frames",
-    )
-    parser.add_argument(
-        "--reds-canonical-samples",
-        type=int,
-        default=defaults.reds.canonical_samples,
-        help="reds: EPIC canonicalisation frames per anchor (default %(default)s)",
-    )
-    parser.add_argument("--no-augment", action="store_true")
-    parser.add_argument(
-        "--augment-shift", type=int, default=defaults.augment.max_shift, help="largest random shift, pixels"
-    )
-    parser.add_argument(
-        "--augment-brightness",
-        type=float,
-        default=defaults.augment.brightness,
-        help="brightness factor drawn from [1 - b, 1 + b] (default %(default)s)",
-    )
-    parser.add_argument(
-        "--augment-contrast", type=float, default=defaults.augment.contrast, help="contrast jitter, like brightness"
-    )
-    parser.add_argument("--device", default=defaults.device, help="torch device of the training: cpu (default) or cuda")
     args = parser.parse_args(argv)
-    config = dataclasses.replace(
-        defaults,
-        dataset=args.dataset,
-        method=args.method,
-        view=args.view,
-        encoder=EncoderConfig(
-            kind=args.encoder, image_size=args.image_size, embedding_dim=args.embedding_dim, widths=args.widths
-        ),
-        learning_rate=args.learning_rate,
-        reds=dataclasses.replace(
-            defaults.reds,
-            subtasks=args.reds_subtasks,
-            frames_per_batch=args.reds_frames_per_batch,
-            canonical_samples=args.reds_canonical_samples,
-        ),
-        augment=dataclasses.replace(
-            defaults.augment,
-            enabled=not args.no_augment,
-            max_shift=args.augment_shift,
-            brightness=args.augment_brightness,
-            contrast=args.augment_contrast,
-        ),
-        device=args.device,
-        shaping=dataclasses.replace(defaults.shaping, hold_steps=args.hold_steps),
-        calibration=dataclasses.replace(
-            defaults.calibration,
-            percentile=args.threshold_percentile,
-            random_episodes=args.random_episodes,
-            false_fire_rate=args.false_fire_rate,
-            demo_pass_rate=args.demo_pass_rate,
-            wrong_order_episodes=args.wrong_order_episodes,
-            clips=tuple(args.clips),
-            clips_raise_thresholds=args.clips_raise_thresholds,
-            window_offsets=tuple(args.stage_window_offsets),
-            demo_negatives=args.demo_negatives,
-            stage_head_subtasks=tuple(args.stage_head_subtasks),
-            stage_head=dataclasses.replace(
-                defaults.calibration.stage_head,
-                view=args.stage_head_view,
-                **{
-                    setting: getattr(args, f"stage_head_{option.replace('-', '_')}")
-                    for option, (setting, _, _) in STAGE_HEAD_OPTIONS.items()
-                },
-            ),
-        ),
-        **{name: getattr(args, name) for name in INTEGER_OPTIONS},
-    )
-    return config, args
+    return build_settings(PretrainConfig, {"dataset": args.dataset, **settings.overrides(args)}), args
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -19,7 +19,7 @@ holdr for HOLD-R models, reds for REDS models on their own segmentation; a REDS 
   done, and how many frames each (first) completion lands from the true subtask end.
 
 Per subtask k (report key `per_subtask`, one entry per subtask, in order):
-- spearman_shaping_within: Spearman of the shaping term (RewardParts.distance: the reward
+- spearman_shaping_within: Spearman of the shaping term (RewardParts.shaping: the reward
   without subtask bonus and without intrinsic bonus) against time, over the frames whose TRUE
   stage is k (k subtasks really done, task_stages.demo_stages: the frame on which subtask k counts
   is already stage k + 1, as it is for the reward, which pays that frame the bonus and shapes
@@ -46,25 +46,19 @@ Per subtask k (report key `per_subtask`, one entry per subtask, in order):
 - false_not_early_rate: the same, counting only false completions that no true completion of
   k followed within NOT_EARLY_AFTER frames (an early switch is false, but the episode earned it).
 
-Every reward is scored through `RewardScorer` (`rewards.replay`); --scorer-option key=value
-(repeatable; the value is read as JSON when it parses, else as a string) chooses the scorer:
-a RewardScorer constructor argument passes through (a JSON object for `config` or `intrinsic`
-becomes a RewardConfig or IntrinsicConfig), a RewardConfig field (shaping=, tracker=, ...) goes
-into its `config`. So the report can be run per shaping / tracker variant, e.g.
-`--scorer-option shaping=thesis --scorer-option tracker=threshold`. `stage_source=privileged`
-(DIAGNOSTIC) replays every episode with its true stage and bonus, from its recorded progress:
-the shaping columns then measure the shaping alone, without the tracker's lag or errors.
-Writes report.json (with
-the model's config, the scorer options and each scheme's resulting scorer config) and PNG
-plots into --out.
+Every reward is scored through `RewardScorer` (`rewards.replay`) with the RewardConfig that
+inest-train's flags of the same names set, so the report can be run per shaping / tracker
+variant, e.g. `--shaping thesis --tracker threshold`. `--stage-source privileged` (DIAGNOSTIC)
+replays every episode with its true stage and bonus, from its recorded progress: the shaping
+columns then measure the shaping alone, without the tracker's lag or errors. Writes
+report.json (with the model's config, the scorer options and each scheme's resulting scorer
+config) and PNG plots into --out.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import difflib
-import inspect
 import json
 import math
 import sys
@@ -75,13 +69,13 @@ from typing import Any
 
 import numpy as np
 from inest_common.progress import track
+from inest_common.settings import add_setting_flags, build_settings
 from inest_sim_node.dataset import DatasetError
 from inest_sim_node.expert import WRONG_ORDER
 from inest_sim_node.world import BLOCK_COLOURS
 from scipy.stats import spearmanr
 
 from ..runtime.config import RewardConfig
-from ..runtime.intrinsic import IntrinsicConfig
 from ..runtime.methods import default_variant
 from ..runtime.model import ModelError, RewardModel, load_model
 from ..runtime.rewards import Replay, RewardScorer, replay
@@ -323,7 +317,7 @@ def demo_quality(
         ends=ends,
         stages=stages,
         metrics=metrics,
-        within_shaping=within_subtask_spearman(played.distance, stages, len(goals)),
+        within_shaping=within_subtask_spearman(played.shaping, stages, len(goals)),
         within_embedding=within_subtask_spearman(-distances, stages, len(goals)),
         dips=switch_dips(settled.rewards, completions, len(goals)),
         lags=completion_lags(completions, ends),
@@ -453,7 +447,7 @@ def plot_scheme(results: list[DemoQuality], title: str, path: Path, examples: in
             middle.plot(result.gaussians[:, i], "--", color=colours(i), alpha=0.6)
         middle.set(title="cosine to each goal (dashed: ideal)", xlabel="frame")
         frames = np.arange(len(result.stages))
-        shaping = result.replay.distance
+        shaping = result.replay.shaping
         for i in range(result.cosine.shape[1]):
             mask = result.stages == i
             label = f"true stage {i + 1}"
@@ -478,9 +472,6 @@ class ScorerOptionError(ValueError):
     """RewardScorer refuses the scorer options given."""
 
 
-OPTION_DATACLASSES = {"config": RewardConfig, "intrinsic": IntrinsicConfig}  # RewardScorer parameters
-
-
 def described_model(model: RewardModel) -> dict[str, Any]:
     """The model's description for a report: its metadata with each scheme's thresholds, not the
     goals and stage classifiers fitted with them (model.json holds those; a report stays small)."""
@@ -490,49 +481,12 @@ def described_model(model: RewardModel) -> dict[str, Any]:
     return described
 
 
-def parse_scorer_option(text: str) -> tuple[str, Any]:
-    """'key=value' -> (key, value), the value read as JSON when it parses (3, 0.5, true, "x", {...}), else
-    kept as a string."""
-    key, separator, value = text.partition("=")
-    if not separator or not key.isidentifier():
-        raise argparse.ArgumentTypeError(f"expected key=value with a Python identifier as key, got {text!r}")
+def reward_config(settings: dict[str, Any]) -> RewardConfig:
+    """The scorers' RewardConfig from the command line's reward settings, refused in one line."""
     try:
-        return key, json.loads(value)
-    except json.JSONDecodeError:
-        return key, value
-
-
-def scorer_arguments(options: dict[str, Any]) -> dict[str, Any]:
-    """--scorer-option values -> RewardScorer keyword arguments. A key naming a RewardScorer parameter
-    passes through (a JSON object for `config` / `intrinsic` becomes a RewardConfig / IntrinsicConfig);
-    a key naming a RewardConfig field (shaping, tracker, hold_steps, ...) goes into `config`; any
-    other key is refused, naming the closest valid one."""
-    parameters = inspect.signature(RewardScorer.__init__).parameters
-    config_fields = {item.name for item in dataclasses.fields(RewardConfig)}
-    valid = sorted((set(parameters) - {"self", "model"}) | config_fields)
-    for key in options:
-        if key not in valid:
-            close = difflib.get_close_matches(key, valid, 1)
-            hint = f" (did you mean {close[0]}?)" if close else ""
-            raise ScorerOptionError(f"unknown scorer option {key!r}{hint}; the options are {', '.join(valid)}")
-    arguments: dict[str, Any] = {}
-    into_config: dict[str, Any] = {}
-    try:
-        for key, value in options.items():
-            if key not in parameters and key in config_fields:
-                into_config[key] = value
-            elif key in OPTION_DATACLASSES and isinstance(value, dict):
-                arguments[key] = OPTION_DATACLASSES[key](**value)
-            else:
-                arguments[key] = value
-        if into_config:
-            base = arguments.get("config")
-            arguments["config"] = (
-                dataclasses.replace(base, **into_config) if base is not None else RewardConfig(**into_config)
-            )
-    except (TypeError, ValueError) as error:
-        raise ScorerOptionError(f"bad scorer options {format_options(options)}: {error}") from error
-    return arguments
+        return build_settings(RewardConfig, settings, "reward setting(s)")
+    except ValueError as error:
+        raise ScorerOptionError(f"bad reward settings: {error}") from None
 
 
 def json_ready(options: dict[str, Any] | None) -> dict[str, Any]:
@@ -771,41 +725,25 @@ def main(argv: list[str] | None = None) -> int:
         "--negative-episodes",
         type=int,
         default=DEFAULT_NEGATIVE_EPISODES,
-        help=f"random-policy and wrong-order episodes, each, for the false-completion rates (default "
-        f"{DEFAULT_NEGATIVE_EPISODES}; 0 skips them)",
+        help="random-policy and wrong-order episodes, each, for the false-completion rates (0 skips them)",
     )
     parser.add_argument(
         "--negative-seed-offset",
         type=int,
         default=0,
-        help="moves the negatives' layout seeds, for a selection set the reported figures never see (default 0)",
+        help="moves the negatives' layout seeds, for a selection set the reported figures never see",
     )
-    parser.add_argument(
-        "--clips",
-        nargs="+",
-        default=[],
-        metavar="FILE",
-        help="labelled clip files (inest-record-clips) counted as negatives too (false clips)",
-    )
-    parser.add_argument(
-        "--scorer-option",
-        type=parse_scorer_option,
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="how RewardScorer scores (repeatable): a constructor argument, or a RewardConfig field such as "
-        "shaping=thesis or tracker=threshold; the value is read as JSON when it parses, else as a string",
+    parser.add_argument("--clips", nargs="+", default=[], metavar="FILE", help="labelled clip files, negatives too")
+    reward_flags = add_setting_flags(
+        parser.add_argument_group("how the reward scores (RewardConfig; the same flags as inest-train's)"),
+        RewardConfig,
     )
     args = parser.parse_args(argv)
-    if args.negative_episodes < 0:
-        parser.error(f"--negative-episodes must be >= 0, got {args.negative_episodes}")
-    if args.negative_seed_offset < 0:
-        parser.error(f"--negative-seed-offset must be >= 0, got {args.negative_seed_offset}")
-    options = dict(args.scorer_option)
-    if len(options) != len(args.scorer_option):
-        parser.error("each --scorer-option key may be given once")
+    if min(args.negative_episodes, args.negative_seed_offset) < 0:
+        parser.error("--negative-episodes and --negative-seed-offset must be >= 0")
     try:
-        scorer_options = scorer_arguments(options)
+        reward_settings = reward_flags.overrides(args)
+        scorer_options = {"config": reward_config(reward_settings)} if reward_settings else {}
         model = load_model(args.model)
         schemes = args.schemes or sorted(model.subtasks)
         for scheme in schemes:

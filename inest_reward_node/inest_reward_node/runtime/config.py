@@ -8,8 +8,10 @@ reward-quality report's scorer options set; the trackers take their own parts of
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import asdict, dataclass, field
+from typing import Any, Literal
+
+from inest_common.settings import CHOICES, check_choices
 
 from .trackers import TRACKERS
 
@@ -22,76 +24,50 @@ STAGE_FILTERS = ("none", "forward")
 @dataclass(frozen=True)
 class RewardConfig:
     """How a learned reward turns frames into a reward (the xirl and holdr rewards only use
-    `tracker`/`stage_source` for the subtask they report, and `intrinsic_cap`).
+    `tracker`/`stage_source` for the subtask they report, and `intrinsic_cap`). Shaping, per
+    frame, with c the subtasks completed and B the model's subtask bonus: "thesis" is r(d) of the
+    distance to the current goal in the rescaled units (ShapingConfig.start_distance) + B c;
+    "segment" is B (c + s / (s + d_c)), s the distance to the mean embedding of the frames where
+    subtask c starts and d_c the distance to goal c: it rises from B c towards B (c + 1) within a
+    subtask and never dips at a switch, where the distance alone is not monotone (the embedding
+    curves round the goal; docs/reports/reward-signal.md)."""
 
-    shaping (per frame, with c the subtasks completed, B the model's subtask bonus):
-    - "thesis": r(d) of the distance to the current goal in the rescaled units
-      (ShapingConfig.start_distance), + B c: the thesis's reward.
-    - "segment" (default): B (c + closeness_c), closeness_c = s / (s + d_c), s the distance to
-      the mean embedding of the frames where subtask c starts (model.json `start_embeddings`),
-      d_c the distance to goal c: where the frame sits between the subtask's start and its
-      goal. Rises from B c towards B (c + 1) within a subtask, never dips at a switch; B K once
-      all are done. The distance to the goal alone is not monotone within a subtask (the
-      embedding curves round the goal; docs/reward-signal.md).
-    tracker (when the stage comes from the reward itself):
-    - "threshold": the thesis's counter: r(d) above the subtask's threshold for `hold_steps`
-      frames completes it, for good (latched).
-    - "confirmed" (default): the threshold test, then the classifier's agreement within
-      `confirm_window` frames (ConfirmedTracker), and reopening a subtask whose frames look like its
-      first half again.
-    stage_source: "tracker", or "privileged" (DIAGNOSTIC ONLY: stage and bonus from the
-      simulator's true ordered progress, which the caller tells the scorer per frame).
-    hold_steps: frames a tracker's test must hold to move the stage; 0: the model's
-      (ShapingConfig.hold_steps, what its thresholds were calibrated for).
-    stage_evidence: where the confirmed tracker reads P(stage >= j) from:
-      "pixels" (the pixel stage head on the frame itself, stage_head.py, fitted on the scene
-      camera by default; the embedding does not keep "block in the strip"), "embedding" (the
-      stage classifier on the frame's embedding), "window" (a classifier on the embeddings of the
-      frame and of frames before it, stage_window.py: causal evidence one frame cannot fool), or
-      "auto" (default): pixels when the model has a pixel stage head for the scheme, else embedding.
-    stage_confidence: the classifier says "stage >= j" when it gives P(stage >= j) >= this.
-    confirm_window: frames after the threshold test has held within which the classifier must agree.
-    confirm_steps: frames in a row the classifier must agree to confirm a completion; 0: hold_steps,
-      the streak the threshold test needs. 1 confirms on the first frame the classifier agrees,
-      which shortens the tracker's lag behind the true completion (docs/reward-signal.md).
-    instant_confidence: P(stage >= j) at which one frame of agreement confirms at once, ahead of
-      confirm_steps: a two-speed test, strong evidence switches on the frame and weak evidence
-      after confirm_steps frames (no lag on clear completions, the streak's honesty on unclear
-      ones); 1: off. 0.9 (default) with the 600-demonstration scene heads meets the per-subtask
-      reward targets on held-out and selection demonstrations (docs/reward-signal.md).
-    intrinsic_cap: the weighted novelty bonus (after the post-switch boost) is clipped to at most
-      this; None (or inf) for no clip.
-    stage_filter: "none" (each frame's stage evidence alone) or "forward": the confirmed tracker
-      reads a causal forward filter over the stages instead (stage_filter.py), whose belief moves
-      up one stage with probability `filter_advance` per frame, back with `filter_regress`, and
-      weighs each frame's stage probabilities raised to `filter_temperature`.
-    """
-
-    shaping: str = "segment"
-    tracker: str = "confirmed"
-    stage_source: str = "tracker"
-    stage_evidence: str = "auto"
+    # thesis: r(d) + B c, the thesis's reward; segment: B (c + closeness to goal c)
+    shaping: Literal[SHAPINGS] = "segment"
+    # threshold: the thesis's latched counter (r(d) above the threshold for hold_steps frames);
+    # confirmed: the threshold test, then the stage evidence's agreement within confirm_window
+    # frames, and a subtask reopened when its frames look like its first half again
+    tracker: str = field(default="confirmed", metadata={CHOICES: lambda: tuple(TRACKERS)})
+    # tracker, or privileged (DIAGNOSTIC ONLY: stage and bonus from the simulator's true ordered progress)
+    stage_source: Literal[STAGE_SOURCES] = "tracker"
+    # what the confirmed tracker reads P(stage >= j) from: pixels (the pixel stage head,
+    # stage_head.py, on the scene camera by default), embedding (the stage classifier on the
+    # frame's embedding), window (a classifier over the frame's and earlier frames' embeddings,
+    # stage_window.py) or auto (pixels when the model has a pixel stage head for the scheme)
+    stage_evidence: Literal[STAGE_EVIDENCE] = "auto"
+    # frames a tracker's test must hold to move the stage; 0: the model's (what its thresholds were calibrated for)
     hold_steps: int = 0
+    # the stage evidence says "stage >= j" when P(stage >= j) is at least this
     stage_confidence: float = 0.5
+    # frames after the threshold test has held within which the stage evidence must agree
     confirm_window: int = 20
+    # frames in a row the stage evidence must agree to confirm a completion; 0: hold_steps
     confirm_steps: int = 0
+    # P(stage >= j) at which one frame confirms a completion at once, ahead of confirm_steps; 1: off
     instant_confidence: float = 0.9
+    # the weighted novelty bonus (after the post-switch boost) is clipped to at most this; None: no clip
     intrinsic_cap: float | None = None
-    stage_filter: str = "none"
+    # none: each frame's stage evidence alone; forward: a causal forward filter over the stages (stage_filter.py)
+    stage_filter: Literal[STAGE_FILTERS] = "none"
+    # the stage filter's chance per frame of one stage up
     filter_advance: float = 0.05
+    # the stage filter's chance per frame of one stage back
     filter_regress: float = 0.005
+    # the power the stage filter raises each frame's stage probabilities to
     filter_temperature: float = 0.5
 
     def __post_init__(self) -> None:
-        for name, allowed in (
-            ("shaping", SHAPINGS),
-            ("tracker", tuple(TRACKERS)),  # read at each check: a tracker registered later counts
-            ("stage_source", STAGE_SOURCES),
-            ("stage_evidence", STAGE_EVIDENCE),
-            ("stage_filter", STAGE_FILTERS),
-        ):
-            if getattr(self, name) not in allowed:
-                raise ValueError(f"unknown reward {name} {getattr(self, name)!r}; expected one of {allowed}")
+        check_choices(self, "reward ")
         if self.hold_steps < 0:
             raise ValueError(f"hold_steps must be >= 0 (0: the model's), got {self.hold_steps}")
         if not 0.0 < self.stage_confidence < 1.0:

@@ -8,10 +8,11 @@ here, a documented deviation from the thesis (which fine-tunes an ImageNet ResNe
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import torch
+from inest_common.settings import check_choices
 from torch import nn
 
 from .images import fit_square
@@ -21,7 +22,7 @@ ENCODER_KINDS = ("small_cnn", "resnet18")
 
 @dataclass(frozen=True)
 class EncoderConfig:
-    kind: str = "small_cnn"
+    kind: Literal[ENCODER_KINDS] = "small_cnn"  # the frame encoder's network
     embedding_dim: int = 32
     image_size: int = 96  # frames of any other size are resized to this before encoding
     channels_last: bool = True
@@ -29,10 +30,9 @@ class EncoderConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "widths", tuple(self.widths))  # JSON gives a list
+        check_choices(self, "encoder ")
         if not self.widths or min(self.widths) < 1:
             raise ValueError(f"widths must be positive channel counts, got {list(self.widths)}")
-        if self.kind not in ENCODER_KINDS:
-            raise ValueError(f"unknown encoder kind {self.kind!r}; expected one of {ENCODER_KINDS}")
         if self.embedding_dim <= 0:
             raise ValueError(f"embedding_dim must be positive, got {self.embedding_dim}")
         if self.image_size < 32:

@@ -10,26 +10,28 @@ to find new behaviour.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import torch
+from inest_common.settings import check_choices
 
 INTRINSIC_MODES = ("none", "embedding", "state")
 
 
 @dataclass(frozen=True)
 class IntrinsicConfig:
-    mode: str = "embedding"  # none | embedding (learned embedding) | state (raw state vector, thesis 5.2.3)
+    # none, embedding (the learned embedding) or state (the raw state vector, thesis 5.2.3)
+    mode: Literal[INTRINSIC_MODES] = "embedding"
     capacity: int = 5000  # per subtask, FIFO (thesis)
     k: int = 10  # k-th nearest neighbour (the thesis author's code); capped at the memory's size
-    weight: float = 0.2  # thesis
+    # thesis; inest-train's --intrinsic-weight W also sets boosted_weight to 2 W unless that is given
+    weight: float = 0.2
     boosted_weight: float = 0.4  # thesis, for `boost_steps` steps after a subtask switch
     boost_steps: int = 10  # the thesis's n, not given there
 
     def __post_init__(self) -> None:
-        if self.mode not in INTRINSIC_MODES:
-            raise ValueError(f"unknown intrinsic mode {self.mode!r}; expected one of {INTRINSIC_MODES}")
+        check_choices(self, "intrinsic ")
         for name in ("capacity", "k"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
@@ -51,8 +53,8 @@ class NoveltyMemory:
 
     Searched with torch, not numpy: numpy's BLAS starts its own spinning threads once the
     memory is large, and on a small machine they fight the encoder's and SAC's torch threads
-    (training ran at half speed once the memories filled). The vectors are stored as columns:
-    a few queries times a contiguous (dim, capacity) matrix is 2-3x faster than times a
+    (training slowed once the memories filled). The vectors are stored as columns:
+    a few queries times a contiguous (dim, capacity) matrix is faster than times a
     transposed row store.
     """
 
@@ -94,7 +96,7 @@ class NoveltyMemory:
         queries = torch.as_tensor(np.atleast_2d(queries), dtype=torch.float32)
         if self.size == 0:
             return np.zeros(len(queries))
-        # the largest of the k smallest: topk is about 3x faster than kthvalue on a full memory
+        # the largest of the k smallest: topk is faster than kthvalue on a full memory
         kth = self._squared_distances(queries).topk(min(k, self.size), dim=1, largest=False, sorted=False).values
         return kth.amax(1).clamp_min(0.0).sqrt().numpy()
 

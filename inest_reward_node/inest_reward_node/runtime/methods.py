@@ -4,7 +4,7 @@ A method is one class in `REWARD_METHODS`, chosen once by name, in the manner of
 `imitation` library's reward functions. The scorer (rewards.py) hands it a `Batch`: each frame's
 embedding, its completion-test reward against every subtask goal (`subtask_rewards`, what the
 trackers test) and the stage before and after the frame; the method returns each frame's
-reward without the subtask bonus (`distance`), and pays `bonus` per completed subtask. Adding
+reward without the subtask bonus (`shaping`), and pays `bonus` per completed subtask. Adding
 a method is a class (here or in a module of its own) and one line in `REWARD_METHODS`.
 """
 
@@ -51,14 +51,14 @@ class Batch(NamedTuple):
 
 class LearnedReward:
     """One reward method. The scorer calls `subtask_rewards` on a batch of embeddings (what the
-    trackers test) and, once the trackers have taken the batch, `distance`: each frame's reward
+    trackers test) and, once the trackers have taken the batch, `shaping`: each frame's reward
     without the subtask bonus, `bonus` per completed subtask."""
 
     name: ClassVar[str]
     model_kind: ClassVar[str] = "tcc"  # the kind of model the method needs (ModelMetadata.method)
     infers_stage: ClassVar[bool] = False  # the method says which subtask a frame is in (`inferred_stages`)
     single_goal: ClassVar[bool] = False  # scored against the final goal alone: one subtask
-    uses_segments = False  # whether `distance` needs each frame's segment closeness
+    uses_segments = False  # whether `shaping` needs each frame's segment closeness
     bonus = 0.0
 
     def __init__(self, model: RewardModel, goals: SubtaskGoals, config: RewardConfig) -> None:
@@ -74,7 +74,7 @@ class LearnedReward:
         """(N, subtasks): each frame's completion-test reward against every subtask goal (TCC: r(d))."""
         return distance_reward(goal_distances(embeddings, goals) * inest_distance_unit(model, goals), model.shaping)
 
-    def distance(self, batch: Batch) -> np.ndarray:
+    def shaping(self, batch: Batch) -> np.ndarray:
         raise NotImplementedError
 
     def inferred_stages(self, embeddings: np.ndarray) -> np.ndarray:
@@ -95,14 +95,14 @@ class InestReward(LearnedReward):
         self.bonus = model.shaping.subtask_bonus
         self.uses_segments = config.shaping == "segment"
 
-    def distance(self, batch: Batch) -> np.ndarray:
+    def shaping(self, batch: Batch) -> np.ndarray:
         if self.uses_segments:  # the stage after this frame: continuous at a switch
             shaped, stage, live = self.bonus * batch.segments, batch.after, ~batch.done
         else:
             shaped, stage, live = batch.per_subtask, batch.before, ~batch.was_done
-        distance = np.zeros(len(stage))
-        distance[live] = shaped[np.flatnonzero(live), stage[live]]
-        return distance
+        shaping = np.zeros(len(stage))
+        shaping[live] = shaped[np.flatnonzero(live), stage[live]]
+        return shaping
 
 
 class XirlReward(LearnedReward):
@@ -117,7 +117,7 @@ class XirlReward(LearnedReward):
         if scheme != 1:
             raise ModelError(f"the xirl reward has one goal embedding; it cannot use {scheme} subtasks")
 
-    def distance(self, batch: Batch) -> np.ndarray:
+    def shaping(self, batch: Batch) -> np.ndarray:
         return -self.goals.distance_scale * np.linalg.norm(batch.embeddings - self.goals.goals[-1], axis=1)
 
 
@@ -137,7 +137,7 @@ class HoldrReward(LearnedReward):
             columns.append(-np.maximum(0.0, to_goal - model.holdr_steps_at_goal(goal)) / horizon)
         return np.stack(columns, axis=1)
 
-    def distance(self, batch: Batch) -> np.ndarray:
+    def shaping(self, batch: Batch) -> np.ndarray:
         return batch.per_subtask[:, -1].astype(np.float64)
 
 
@@ -156,7 +156,7 @@ class RedsReward(LearnedReward):
     def subtask_rewards(model: RewardModel, embeddings: np.ndarray, goals: SubtaskGoals) -> np.ndarray:
         return model.reds_rewards(embeddings, goals.goals)
 
-    def distance(self, batch: Batch) -> np.ndarray:
+    def shaping(self, batch: Batch) -> np.ndarray:
         return batch.per_subtask[np.arange(len(batch.after)), batch.after].astype(np.float64)
 
     def inferred_stages(self, embeddings: np.ndarray) -> np.ndarray:

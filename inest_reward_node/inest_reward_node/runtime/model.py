@@ -45,7 +45,7 @@ MODEL_FILE = "model.json"
 METHODS = ("tcc", "holdr", "reds")
 TCC_SCHEMES = (1, 3, 6)  # the subtask schemes a TCC model is calibrated for
 # the reward model the product ships, relative to the checkout: its scores, and the trained policy
-# that uses it, are in docs/results.md
+# that uses it, are in docs/reports/early-models.md
 DEFAULT_MODEL = "results/long-horizon/reward-model-scene96-600demos"
 CHECKOUT = Path(__file__).resolve().parents[3]  # this source tree's root (an installed copy has no results/)
 
@@ -237,7 +237,9 @@ class RewardModel:
 
     @torch.inference_mode()
     def embed(self, frames: np.ndarray, batch_size: int = 256) -> np.ndarray:
-        """uint8 (N, H, W, 3) RGB frames of any size -> (N, D) float32 embeddings."""
+        """uint8 (N, H, W, 3) RGB frames -> (N, D) float32 embeddings. Frames already at
+        `image_size` (the reward node's, fitted as they were decoded) are encoded as they are;
+        frames of any other size are fitted here (images.fit_square), once."""
         frames = resize_frames(np.asarray(frames), self.image_size)
         outputs = [
             self.inference(frames_to_tensor(frames[start : start + batch_size], self.encoder_config.channels_last))

@@ -38,20 +38,19 @@ What differs from REDS, and why:
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import torch
+from inest_common.settings import check_choices
 from torch import nn
 
 from .encoders import EncoderConfig, build_encoder
 
-LABEL = "REDS (no CLIP)"
-
 
 @dataclass(frozen=True)
 class RedsConfig:
-    subtasks: int = 3  # the segmentation REDS is trained on and conditions on (the thesis: one per block)
+    subtasks: Literal[1, 3, 6] = 3  # the segmentation REDS is trained on and conditions on (the thesis: one per block)
     hidden: int = 256  # reward head width
     frames_per_batch: int = 32  # anchor frames per pretraining batch
     canonical_samples: int = 8  # EPIC canonicalisation frames per anchor (REDS: pearson_size 8)
@@ -64,8 +63,7 @@ class RedsConfig:
     subtask_bias: float = 0.05  # inference: bias per subtask towards earlier ones (REDS: eps 5e-2)
 
     def __post_init__(self) -> None:
-        if self.subtasks not in (1, 3, 6):
-            raise ValueError(f"reds.subtasks must be one of (1, 3, 6), got {self.subtasks}")
+        check_choices(self, "reds.")
         for name in ("hidden", "frames_per_batch", "canonical_samples"):
             if getattr(self, name) < 1:
                 raise ValueError(f"reds.{name} must be positive, got {getattr(self, name)}")

@@ -12,7 +12,7 @@ infers the subtask itself (reds) tells the tracker its own inference.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -21,32 +21,13 @@ from .config import RewardConfig
 from .intrinsic import IntrinsicConfig, NoveltyMemory
 from .methods import REWARD_METHODS, Batch, default_variant, goal_distances, inest_distance_unit
 from .model import ModelError, RewardModel, SubtaskGoals
+from .reward_parts import RewardParts
 from .shaping import segment_closeness
 from .stage_classifier import at_least as at_least_of
 from .stage_filter import StageFilter, exactly
 from .trackers import TRACKERS, Evidence, StageTracker, ToldStage
 
 THESIS_REWARD = RewardConfig(shaping="thesis", tracker="threshold")  # the reward as the thesis has it
-
-
-@dataclass
-class RewardParts:
-    """One scored batch: per environment, the reward and what it is made of."""
-
-    total: np.ndarray  # (N,) what the agent receives
-    distance: np.ndarray  # (N,) the method's per-frame reward (INEST: shaping term of the current goal; 0 once done)
-    bonus: np.ndarray  # (N,) subtask bonus (INEST: completed subtasks x bonus)
-    intrinsic: np.ndarray  # (N,) weighted novelty bonus
-    subtask: np.ndarray  # (N,) current subtask index after this frame
-    completed: np.ndarray  # (N,) subtasks completed after this frame: the stage the policy should see (may drop)
-    switched: np.ndarray  # (N,) bool, this frame completed a subtask (an upward switch only)
-    embeddings: np.ndarray  # (N, D) the frames' embeddings, for coverage analysis
-    # (N,) how sure the stage is: P(stage == completed) from the stage evidence the tracker read
-    # (filtered, with a stage filter); NaN for a reward that reads none, 1 where the stage is told
-    confidence: np.ndarray
-
-    def select(self, rows: slice | np.ndarray) -> RewardParts:
-        return RewardParts(*(getattr(self, field.name)[rows] for field in fields(self)))
 
 
 @dataclass
@@ -333,12 +314,12 @@ class RewardScorer:
                 self.steps_since_switch[env] += 1
             if ends[row]:
                 self.reset(env)
-        distance = self.reward.distance(Batch(per_subtask, embeddings, segments, before, was_done, subtask, done))
+        shaping = self.reward.shaping(Batch(per_subtask, embeddings, segments, before, was_done, subtask, done))
         bonus = completed * self.reward.bonus
         # novelty is judged within the subtask the frame was taken in
         intrinsic = self.intrinsic_bonus(embeddings, states, before, since_switch, rounds)
-        total = distance + bonus + intrinsic
-        return RewardParts(total, distance, bonus, intrinsic, subtask, completed, switched, embeddings, confidence)
+        total = shaping + bonus + intrinsic
+        return RewardParts(total, shaping, bonus, intrinsic, subtask, completed, switched, embeddings, confidence)
 
     def segments(self, embeddings: np.ndarray) -> np.ndarray | None:
         """(N, subtasks) segment closeness of each frame, when the method or the tracker reads it."""
@@ -401,9 +382,9 @@ class Replay:
         return self.parts.total
 
     @property
-    def distance(self) -> np.ndarray:
+    def shaping(self) -> np.ndarray:
         """(N,) the shaping term: the reward without subtask bonus and intrinsic bonus."""
-        return self.parts.distance
+        return self.parts.shaping
 
     @property
     def bonus(self) -> np.ndarray:

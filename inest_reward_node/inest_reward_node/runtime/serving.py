@@ -1,7 +1,8 @@
 """Serving the learned reward to live camera streams, without ROS: the reward node's logic.
 
-Frames arrive one at a time from one or more streams (a simulator or camera each); whatever
-has arrived when the node gets to it is scored in one encoder forward pass.
+Frames arrive one at a time from one or more streams (a simulator or camera each), already
+fitted to the encoder's input (the node fits each once, as it decodes it: images.decode_image);
+whatever has arrived when the node gets to it is scored in one encoder forward pass.
 
 Stamps. A stream's frames are keyed by their stamp and expected in stamp order:
 - a repeat of the newest stamp with the same pixels is a re-publish (a lockstep simulator
@@ -32,7 +33,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .images import fit_square
 from .rewards import RewardFunction, RewardScorer, Steps
 
 BACKWARD_POLICIES = ("reset", "reject")
@@ -41,20 +41,23 @@ READY, WAITING, LOST = "ready", "waiting", "lost"  # a frame's pairing with its 
 
 @dataclass
 class ScoredFrame:
+    """One served frame's reward: where and when the frame came from, and its published parts
+    under their RewardParts names (reward_parts.PARTS, which names their Reward fields too)."""
+
     stream: int
     stamp: int  # nanoseconds, the image's own stamp
+    received: float  # time.perf_counter() when the frame arrived
+    frame_id: str  # the image's frame, handed back for the reward's header
+    episode_frame: int  # frames the stream's tracker has scored since its episode began (1 for the first)
+    model_generation: int  # which model scored it: 0 the first, +1 per replace_scorer
     total: float
-    distance: float
+    shaping: float
     bonus: float
     intrinsic: float
-    subtask: int
-    completed_subtask: bool
-    received: float  # time.perf_counter() when the frame arrived
-    frame_id: str = ""  # the image's frame, handed back for the reward's header
+    completed: int  # the stage: == num_subtasks once all are done
+    switched: bool
+    confidence: float
     repeated: bool = False  # the cached reward of an already scored stamp
-    episode_frame: int = 0  # frames the stream's tracker has scored since its episode began (1 for the first)
-    stage_confidence: float = float("nan")  # RewardParts.confidence
-    model_generation: int = 0  # which model scored it: 0 the first, +1 per replace_scorer
 
 
 @dataclass
@@ -69,7 +72,7 @@ class Pending:
 
 @dataclass
 class StageFrame:
-    frame: np.ndarray  # already fitted to the stage head's input
+    frame: np.ndarray  # already fitted to the encoder's input size, like its partner
     received: float  # time.perf_counter() when it arrived
 
 
@@ -176,7 +179,6 @@ class StreamScorer:
         scorer: RewardFunction,
         max_pending: int = 4,
         backward: str = "reset",
-        resize: str = "crop",
         log: ThrottledLog | None = None,
     ) -> None:
         if scorer.needs_known_stages:
@@ -185,7 +187,7 @@ class StreamScorer:
             raise ValueError(f"backward_stamps must be one of {BACKWARD_POLICIES}, got {backward!r}")
         self.scorer = scorer
         self.max_pending = max_pending  # per stream: older waiting frames are dropped (counted)
-        self.backward, self.resize = backward, resize
+        self.backward = backward
         self.log = log or ThrottledLog()
         self.pending: list[deque[Pending]] = [deque() for _ in range(scorer.num_envs)]
         self.last: list[ScoredFrame | None] = [None] * scorer.num_envs
@@ -219,12 +221,13 @@ class StreamScorer:
         return self.scorer.stage_camera
 
     def submit_stage(self, stream: int, stamp: int, frame: np.ndarray, received: float | None = None) -> None:
-        """The stage head's camera frame of `stamp` on `stream`; kept until its partner is scored.
-        Only the newest few are kept: a partner that never comes must not grow the store."""
+        """The stage head's camera frame of `stamp` on `stream`, fitted to the encoder's input like
+        its partner (`fitted`); kept until its partner is scored. Only the newest few are kept: a
+        partner that never comes must not grow the store."""
         self.arrivals += 1
         kept = self.stage_frames[stream]
         arrived = time.perf_counter() if received is None else received
-        kept[stamp] = StageFrame(fit_square(frame, self.scorer.image_size, self.resize), arrived)
+        kept[stamp] = StageFrame(self.fitted(frame), arrived)
         while len(kept) > 4 * self.max_pending:
             del kept[next(iter(kept))]
             self.stats.dropped["stage_unpaired"] += 1
@@ -271,14 +274,26 @@ class StreamScorer:
             f"rejected {{count}} frames in the last {{seconds}} s: {detail}",
         )
 
+    def fitted(self, frame: np.ndarray) -> np.ndarray:
+        """`frame`, checked to be fitted to the encoder's input already (images.decode_image with
+        its size, or images.fit_square): a frame is cropped and resized once, where it arrives,
+        so that the encoder sees it as it was fitted there."""
+        size = self.scorer.image_size
+        if frame.shape[:2] != (size, size):
+            raise ValueError(
+                f"a {frame.shape[1]}x{frame.shape[0]} frame: fit it to the encoder's {size}x{size} input first"
+            )
+        return frame
+
     def submit(
         self, stream: int, stamp: int, frame: np.ndarray, received: float | None = None, frame_id: str = ""
     ) -> list[ScoredFrame]:
-        """Queue one frame. Returns what had to be scored before it could be taken (the old episode's
-        frames when a backward stamp starts a new one), usually nothing."""
+        """Queue one frame, fitted to the encoder's input (`fitted`). Returns what had to be scored
+        before it could be taken (the old episode's frames when a backward stamp starts a new
+        one), usually nothing."""
         self.arrivals += 1
         arrived = time.perf_counter() if received is None else received
-        frame = fit_square(frame, self.scorer.image_size, self.resize)
+        frame = self.fitted(frame)
         newest = self.newest[stream]
         republished, scored = False, []
         if stamp == 0:
@@ -355,17 +370,11 @@ class StreamScorer:
             scored = ScoredFrame(
                 stream,
                 item.stamp,
-                float(parts.total[index]),
-                float(parts.distance[index]),
-                float(parts.bonus[index]),
-                float(parts.intrinsic[index]),
-                int(parts.completed[index]),  # the stage: == num_subtasks once all are done
-                bool(parts.switched[index]),
                 item.received,
                 item.frame_id,
-                episode_frame=self.episode_frames[stream],
-                stage_confidence=float(parts.confidence[index]),
-                model_generation=self.model_generation,
+                self.episode_frames[stream],
+                self.model_generation,
+                **parts.row(index),
             )
             self.last[stream] = scored
             results.append(scored)

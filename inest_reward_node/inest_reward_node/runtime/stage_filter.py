@@ -2,7 +2,7 @@
 
 One frame cannot say which blocks are placed when it shows none of them (an egocentric camera
 facing the wall), and a policy finds such frames: single-frame stage evidence is fooled in a
-third to a half of its episodes (docs/reward-signal.md). The stage is observable from the
+third to a half of its episodes (docs/reports/reward-signal.md). The stage is observable from the
 frames before it. The filter keeps a belief over the stages and, per frame, (1) moves it with a
 near-monotone prior, a stage advancing by one with probability `advance` per frame and falling
 back by one with `regress` (a block pushed back out), then (2) weighs it by the frame's stage

@@ -2,7 +2,7 @@
 
 The stage classifier (stage_classifier.py) sees only the frozen embedding, and that embedding
 does not keep "this block is inside the goal strip"; the same small CNN trained from scratch
-as a stage classifier on the same labelled frames does (measured in docs/reward-signal.md,
+as a stage classifier on the same labelled frames does (measured in docs/reports/reward-signal.md,
 "A stage detector that sees the pixels"). It is fitted at calibration (learning/stage_fitting.py),
 class-balanced, and stored next to the encoder (`stage_heads.safetensors`).
 `RewardConfig.stage_evidence = "pixels"` makes the confirmed tracker use it.
@@ -33,12 +33,12 @@ STORED_BEFORE: dict[str, Any] = {"view": None, "image_size": 48}
 class StageHeadConfig:
     """Fitting the pixel stage head (Adam on class-balanced batches; minutes per scheme at 96 px)."""
 
-    # frames are downscaled to this (the encoders' size: no downscaling; docs/reward-signal.md
+    # frames are downscaled to this (the encoders' size: no downscaling; docs/reports/reward-signal.md
     # measures 48 against 96 px)
     image_size: int = EncoderConfig.image_size
     widths: tuple[int, ...] = (16, 32, 32, 32)
-    # 600 demonstrations and 3000 iterations: docs/reward-signal.md, "The stage head's last frame: 600 demonstrations"
-    iterations: int = 3000  # 0: no head
+    # training iterations, 0: no head (this and max_demos chosen in docs/reports/reward-signal.md)
+    iterations: int = 3000
     batch_size: int = 128
     learning_rate: float = 1e-3
     max_demos: int = 600  # the first demonstrations of the training split
@@ -47,7 +47,7 @@ class StageHeadConfig:
     boundary_share: float = 0.0
     seed: int = 0
     # the camera it reads; None: the encoder's. The scene camera by default: it always sees the
-    # strip and every block (docs/reward-signal.md, "A stage detector on the scene camera")
+    # strip and every block (docs/reports/reward-signal.md, "A stage detector on the scene camera")
     view: str | None = "allo"
 
     def __post_init__(self) -> None:

@@ -150,7 +150,7 @@ class ConfirmedTracker(ThresholdTracker):
     the frame no longer passes its goal's test and sits nearer that subtask's start than its
     goal (segment closeness below REOPEN_BELOW): it looks like the first half of subtask c - 1
     again. Each test alone is fooled by different frames; together they are what makes the
-    tracker honest (measured in docs/reward-signal.md)."""
+    tracker honest (measured in docs/reports/reward-signal.md)."""
 
     reads = frozenset({"rewards", "segments", "at_least"})
 

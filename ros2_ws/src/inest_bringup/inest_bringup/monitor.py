@@ -43,7 +43,7 @@ class StreamView:
     trace: deque = field(default_factory=lambda: deque(maxlen=TRACE_STEPS))  # (reward, subtask)
     climbs: list[tuple[int, int]] = field(default_factory=list)  # (step, subtask) each time a new high was reached
     highest: int = 0  # this episode's highest subtask so far
-    finished: float | None = None  # the score of an episode whose last reward may still come
+    finished: EpisodeStatus | None = None  # the end of an episode whose last reward may still come
 
 
 def climb_text(climbs: list[tuple[int, int]], num_subtasks: int) -> str:
@@ -100,7 +100,7 @@ class GraphMonitor(Node):
         if msg.truncated or msg.terminated:
             view.episodes += 1
             view.scores.append(msg.score)
-            view.finished = msg.score  # its line waits for the reward of its last frame
+            view.finished = msg  # its line waits for the reward of its last frame
 
     def end_episode(self, index: int) -> None:
         """Queue the episode line of stream `index`'s finished episode, if there is one."""
@@ -108,11 +108,11 @@ class GraphMonitor(Node):
         if view.finished is None:
             return
         if self.episode_lines:
-            blocks = round(view.finished * NUM_BLOCKS)
+            blocks, score = view.finished.blocks_in_order, view.finished.score
             self.events.append(
                 f"{self.namespaces[index] or '/'}: episode {view.episodes}: {blocks} of {NUM_BLOCKS} blocks placed "
                 "in order "
-                f"(score {view.finished:.2f}); the learned reward's {climb_text(view.climbs, view.num_subtasks)}"
+                f"(score {score:.2f}); the learned reward's {climb_text(view.climbs, view.num_subtasks)}"
             )
         view.finished = None
 

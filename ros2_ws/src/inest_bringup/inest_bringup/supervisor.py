@@ -27,11 +27,11 @@ CONFIG_ERROR = 2  # the nodes' exit code for a bad parameter or run file
 FINISHES = "agent"  # the node whose exit 0 means the run is over
 # While the agent trains, the simulators and the reward node run this much nicer than it: the
 # agent's update, which sets the pace of training over the graph, then does not wait behind them
-# for a core (measured in docs/performance.md). Niceness only matters when every core is busy.
+# for a core (measured in docs/reports/performance.md). Niceness only matters when every core is busy.
 TRAINING_NICENESS = 10
 # ... and on every CPU this process may use but the first (AUTO_CPUS): the update then runs on a
 # CPU no simulator is scheduled on, so none preempts it or moves through its cache
-# (docs/performance.md).
+# (docs/reports/performance.md).
 AUTO_CPUS, ALL_CPUS = "auto", "all"
 CPU_LIST = re.compile(r"[0-9]+(-[0-9]+)?(,[0-9]+(-[0-9]+)?)*")  # taskset's list form, without strides
 

@@ -225,9 +225,9 @@ class GraphVecEnv(VecEnv):
             rewards[index] = reward.total if self.learned_reward else status.env_reward
             info = self.step_info(status, reward)
             self.stamps[index], self.observations[index], self.last_infos[index] = new_stamp, observation, dict(info)
-            dones[index] = status.terminated or status.truncated
+            dones[index] = status.truncated  # the task's episodes end at their time limit only
             if dones[index]:
-                info["TimeLimit.truncated"] = status.truncated and not status.terminated
+                info["TimeLimit.truncated"] = True
                 info["terminal_observation"] = observation
                 observation = self.reset_env(index, None)
             observations[index] = observation

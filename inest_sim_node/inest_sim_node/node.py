@@ -120,7 +120,6 @@ class SimNode(Node):
             blocks_in_order=self.env.progress,
             score=self.env.progress / 3,
             env_reward=self.env_reward,
-            terminated=False,
             truncated=self.done,
             state=values,
         )

@@ -97,7 +97,7 @@ class GraphMonitor(Node):
         view = self.views[index]
         if msg.step > 0:
             view.steps += 1
-        if msg.truncated or msg.terminated:
+        if msg.truncated:
             view.episodes += 1
             view.scores.append(msg.score)
             view.finished = msg  # its line waits for the reward of its last frame

@@ -24,12 +24,12 @@ from inest_common.rosutil import namespaced, new_executor, ns_stamp, stamp_ns
 from inest_interfaces.msg import Action, EpisodeStatus, Reward
 from inest_interfaces.srv import ResetEpisode
 from inest_reward_node.runtime.reward_parts import LEARNED_STAGE, info_items, message_parts
+from inest_sim_node.config import EnvConfig
+from inest_sim_node.env import action_space, observation_space
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from stable_baselines3.common.vec_env import VecEnv
 from std_srvs.srv import Trigger
-
-from inest_sim_node import SweepToTopEnv
 
 from .envs import TRUE_PROGRESS, UpdateThread
 from .learners import BROKEN_STEP
@@ -38,8 +38,7 @@ from .pairing import REWARD, STATUS, StepMailbox
 
 class GraphVecEnv(VecEnv):
     def __init__(self, node: Node, namespaces: list[str], learned_reward: bool = True, timeout: float = 5.0) -> None:
-        reference = SweepToTopEnv()  # spaces only; the simulation runs in the simulator nodes
-        super().__init__(len(namespaces), reference.observation_space, reference.action_space)
+        super().__init__(len(namespaces), observation_space(EnvConfig()), action_space())
         self.node, self.namespaces, self.learned_reward, self.timeout = node, namespaces, learned_reward, timeout
         self.executor = new_executor()
         self.executor.add_node(node)

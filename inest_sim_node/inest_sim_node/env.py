@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .config import EnvConfig
+from .config import EnvConfig, WorldConfig
 from .render import SceneRenderer
 from .scoring import OrderTracker, dense_reward
 from .world import BLOCK_COLOURS, World, sample_layout
@@ -40,6 +40,43 @@ def validate_action(action: Any) -> np.ndarray:
     return np.clip(array, -1.0, 1.0)
 
 
+def action_space() -> spaces.Box:
+    """The robot's command: forward speed, turn rate and gripper, each in [-1, 1]."""
+    return spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+
+
+def gap_scale(world: WorldConfig) -> float:
+    """The largest possible gap below the goal: it normalises the oracle reward."""
+    return world.goal_bottom + world.arena_half_size
+
+
+def state_space(world: WorldConfig) -> spaces.Box:
+    half = world.arena_half_size
+    n = len(BLOCK_COLOURS)
+    low = np.concatenate([[-half, -half, -1, -1, 0], np.full(2 * n, -half), np.zeros(3 * n + 1)])
+    high = np.concatenate(
+        [
+            [half, half, 1, 1, 1],
+            np.full(2 * n, half),
+            np.full(n, 2 * np.sqrt(2) * half),
+            np.full(n, gap_scale(world)),
+            np.ones(n + 1),
+        ]
+    )
+    return spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
+
+
+def observation_space(config: EnvConfig) -> spaces.Space:
+    """What SweepToTopEnv observes under `config`, without building one (a graph's agent needs
+    only the spaces; the simulation runs in the simulator nodes)."""
+    pixels = spaces.Box(0, 255, shape=(config.image_size, config.image_size, 3), dtype=np.uint8)
+    if config.observation == "state":
+        return state_space(config.world)
+    if config.observation == "pixels":
+        return pixels
+    return spaces.Dict({"state": state_space(config.world), "pixels": pixels})
+
+
 class SweepToTopEnv(gym.Env):
     """Push red, then blue, then yellow into the green strip at the top.
 
@@ -59,40 +96,15 @@ class SweepToTopEnv(gym.Env):
             raise ValueError(f"unknown render_mode {render_mode!r}; only 'rgb_array' is supported")
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": self.config.world.control_hz}
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
-        # Largest possible gap below the goal: it normalises the oracle reward.
-        self._gap_scale = self.config.world.goal_bottom + self.config.world.arena_half_size
-        self._state_space = self._make_state_space()
-        self.observation_space = self._make_observation_space()
+        self.action_space = action_space()
+        self._gap_scale = gap_scale(self.config.world)
+        self._state_space = state_space(self.config.world)
+        self.observation_space = observation_space(self.config)
         self._renderer = SceneRenderer(self.config.world)
         self.world: World | None = None
         self._tracker = OrderTracker()
         self._steps = 0
         self._gaps = np.zeros(len(BLOCK_COLOURS))
-
-    def _make_state_space(self) -> spaces.Box:
-        half = self.config.world.arena_half_size
-        n = len(BLOCK_COLOURS)
-        low = np.concatenate([[-half, -half, -1, -1, 0], np.full(2 * n, -half), np.zeros(3 * n + 1)])
-        high = np.concatenate(
-            [
-                [half, half, 1, 1, 1],
-                np.full(2 * n, half),
-                np.full(n, 2 * np.sqrt(2) * half),
-                np.full(n, self._gap_scale),
-                np.ones(n + 1),
-            ]
-        )
-        return spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
-
-    def _make_observation_space(self) -> spaces.Space:
-        size = self.config.image_size
-        pixels = spaces.Box(0, 255, shape=(size, size, 3), dtype=np.uint8)
-        if self.config.observation == "state":
-            return self._state_space
-        if self.config.observation == "pixels":
-            return pixels
-        return spaces.Dict({"state": self._state_space, "pixels": pixels})
 
     # --- gymnasium API --------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):

@@ -24,10 +24,6 @@ setup(
         "console_scripts": [
             "inest-agent-node = inest_agent_node.node:main",
             "inest-train = inest_agent_node.train:main",
-            "inest-evaluate = inest_agent_node.reevaluate:main",
-            "inest-summarise = inest_agent_node.summary:main",
-            "inest-experiments = inest_agent_node.experiments:main",
-            "inest-record-clips = inest_agent_node.record_clips:main",
         ],
     },
 )

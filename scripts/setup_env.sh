@@ -20,11 +20,15 @@ if [ "$(cat "$VENV/.inest-stamp" 2>/dev/null)" != "$STAMP" ]; then
   "$VENV/bin/python" -m pip install -q -r requirements.txt -r requirements-dev.txt
   "$VENV/bin/python" -m pip install -q --no-deps -e inest_common -e inest_sim_node -e inest_reward_node -e inest_agent_node \
     -e ros2_ws/src/inest_bringup
+  # after inest_agent_node: in a venv from before inest_experiments existed, inest_agent_node's
+  # install record lists inest-evaluate & co., and reinstalling it deletes them
+  "$VENV/bin/python" -m pip install -q --no-deps -e inest_experiments
   # Editable installs resolve through import hooks that Python consults only after sys.path: from
   # the repository root an ament package folder such as ./inest_sim_node/ (no __init__.py) would win as an
   # empty namespace package. A path entry per package folder makes the real package win everywhere.
   SITE="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
-  printf '%s\n' "$ROOT/inest_common" "$ROOT/inest_sim_node" "$ROOT/inest_reward_node" "$ROOT/inest_agent_node" >"$SITE/inest-packages.pth"
+  printf '%s\n' "$ROOT/inest_common" "$ROOT/inest_sim_node" "$ROOT/inest_reward_node" "$ROOT/inest_agent_node" \
+    "$ROOT/inest_experiments" >"$SITE/inest-packages.pth"
   # The ROS interfaces, generated and compiled from the wheels straight into the venv prefix
   # (no environment variables needed at run time).
   "$VENV/bin/python" scripts/fix_ros_wheel_cmake.py "$VENV"

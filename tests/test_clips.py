@@ -16,8 +16,8 @@ from inest_reward_node.learning.pretrain import pretrain
 from inest_reward_node.runtime.model import load_model
 from small_training import small_train_config
 
-from inest_agent_node import record_clips
 from inest_agent_node.config import TrainConfig
+from inest_experiments import record_clips
 
 
 def test_clip_files_round_trip_and_refuse_what_does_not_fit(tmp_path):

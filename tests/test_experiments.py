@@ -15,11 +15,10 @@ from pathlib import Path
 
 import pytest
 import yaml
-from inest_agent_node.experiments import export_results, main, plan, ranking, rankings
+from inest_experiments.config import GridConfig
+from inest_experiments.experiments import export_results, main, plan, ranking, rankings
 from small_training import small_train_config
 from test_summary import write_run
-
-from inest_agent_node.config import GridConfig
 
 ROOT = Path(__file__).resolve().parent.parent
 STEPS = 400  # two evaluations and checkpoints (200, 400): a cell can be caught between them
@@ -71,7 +70,7 @@ def test_a_killed_grid_resumes_and_finishes_every_cell_exactly_once(tmp_path, ca
     grid = write_grid(tmp_path, methods, [0, 1])
     out = tmp_path / "out"
     cells = [f"{method}/seed{seed}" for method in ("oracle", "bare") for seed in (0, 1)]
-    command = [sys.executable, "-m", "inest_agent_node.experiments", "run", str(grid), "--parallel", "1"]
+    command = [sys.executable, "-m", "inest_experiments.experiments", "run", str(grid), "--parallel", "1"]
     with open(tmp_path / "first.log", "w") as log:
         runner = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         at_kill = kill_when_half_finished(runner, out, cells)

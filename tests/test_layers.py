@@ -7,7 +7,7 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("inest_common", "inest_sim_node", "inest_reward_node", "inest_agent_node")
+PACKAGES = ("inest_common", "inest_sim_node", "inest_reward_node", "inest_agent_node", "inest_experiments")
 # module prefix -> the prefixes it may import (itself always); the longest matching prefix decides
 ALLOWED = {
     "inest_common": (),
@@ -17,6 +17,7 @@ ALLOWED = {
     "inest_reward_node.gym_wrapper": ("inest_reward_node.runtime",),
     "inest_reward_node.learning": ("inest_common", "inest_sim_node", "inest_reward_node.runtime"),
     "inest_agent_node": ("inest_common", "inest_sim_node", "inest_reward_node"),
+    "inest_experiments": ("inest_common", "inest_sim_node", "inest_reward_node", "inest_agent_node"),
 }
 
 
@@ -83,3 +84,32 @@ def test_no_import_cycles_and_no_import_up_the_layers():
         if name not in state:
             visit(name, [name])
     assert cycles == []
+
+
+def test_experiments_use_only_public_names_of_the_other_packages():
+    """inest_experiments is tooling on the other packages' public APIs: it imports no name with a
+    leading underscore from them and reads no such attribute of a module it imported from them."""
+    private = []
+    for path in (ROOT / "inest_experiments" / "inest_experiments").rglob("*.py"):
+        tree = ast.parse(path.read_text())
+        modules = set()  # local names bound to modules of the other packages
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("inest_"):
+                if not node.module.startswith("inest_experiments"):
+                    private += [f"{path.name}: {node.module}.{a.name}" for a in node.names if a.name.startswith("_")]
+                    modules |= {a.asname or a.name for a in node.names}
+            elif isinstance(node, ast.Import):
+                for alias in node.names:
+                    if alias.name.startswith("inest_") and not alias.name.startswith("inest_experiments"):
+                        private += [f"{path.name}: {alias.name}"] if "._" in alias.name else []
+                        modules.add(alias.asname or alias.name.split(".")[0])
+        private += [
+            f"{path.name}: {node.value.id}.{node.attr}"
+            for node in ast.walk(tree)
+            if isinstance(node, ast.Attribute)
+            and node.attr.startswith("_")
+            and not node.attr.startswith("__")
+            and isinstance(node.value, ast.Name)
+            and node.value.id in modules
+        ]
+    assert private == []

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("inest_common", "inest_sim_node", "inest_reward_node", "inest_agent_node")
+PACKAGES = ("inest_common", "inest_sim_node", "inest_reward_node", "inest_agent_node", "inest_experiments")
 
 
 @pytest.mark.parametrize("package", PACKAGES)

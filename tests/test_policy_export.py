@@ -13,7 +13,7 @@ from inest_agent_node.policy_export import export_policy, load_policy
 from inest_agent_node.train import Trainer
 from small_training import small_train_config
 
-from inest_agent_node import reevaluate
+from inest_experiments import reevaluate
 
 
 def test_layout_sets_are_disjoint_and_a_seed_range_is_bounded():

@@ -11,8 +11,8 @@ import pytest
 from inest_agent_node.labelled_rollouts import LABELLED_FILE, RolloutLabelling
 from inest_agent_node.self_negatives import CONFIRM_WITHIN, SelfNegatives
 from inest_agent_node.stage_refit import REFIT_MODEL_DIR, StageRefit
-from inest_agent_node.summary import reward_supervision
 from inest_agent_node.train import Trainer
+from inest_experiments.summary import reward_supervision
 from inest_reward_node.learning.data import load_demos
 from inest_reward_node.learning.task_stages import PROGRESS_FIELD
 from inest_reward_node.runtime.config import RewardConfig
@@ -21,7 +21,7 @@ from inest_reward_node.runtime.rewards import RewardParts, RewardScorer, Steps
 from inest_sim_node.env import STATE_FIELDS
 from small_training import small_train_config
 
-from inest_agent_node import reevaluate
+from inest_experiments import reevaluate
 
 
 class Claims:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from inest_agent_node.summary import main
+from inest_experiments.summary import main
 
 
 def write_run(root, method: str, seed: int, score: float | None, curve: list[list[float]]) -> None:

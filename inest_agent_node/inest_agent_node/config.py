@@ -1,9 +1,8 @@
-"""Training and experiment-grid configuration, one typed place, loadable from YAML (`config/train.yaml`,
-`config/grid.yaml`)."""
+"""Training configuration, one typed place, loadable from YAML (`config/train.yaml`). The experiment
+grids' configuration (`config/grid.yaml` and the other grid files) is inest_experiments.config."""
 
 from __future__ import annotations
 
-import re
 from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any, Literal
@@ -57,12 +56,6 @@ def read_yaml_mapping(path: str | Path, what: str, empty_ok: bool = False) -> di
     if not isinstance(data, dict):
         raise ValueError(f"{path} must hold a mapping of {what}")
     return data
-
-
-def reject_unknown(data: dict[str, Any], known: set[str], what: str) -> None:
-    unknown = sorted(set(data) - known, key=str)
-    if unknown:
-        raise ValueError(f"unknown {what} {unknown}; expected some of {sorted(known)}")
 
 
 @dataclass(frozen=True)
@@ -227,158 +220,3 @@ def setting_defaults() -> dict[str, Any]:
     default to what runs did before them, so this changes nothing a run was trained with."""
     plain = {f.name: f.default for f in fields(TrainConfig) if f.default is not MISSING}
     return {**plain, "label_at": [], "learned_reward": RewardConfig().to_dict(), "sac": asdict(SacConfig())}
-
-
-# inest-train flags an experiment grid sets for every cell itself (experiments.py); `model` has its own key
-GRID_FLAGS = ("--config", "--out", "--seed", "--threads", "--total-steps", "--resume", "--model")
-METHOD_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")  # a method is a folder name
-
-
-@dataclass(frozen=True)
-class ReferenceResult:
-    """A published result to set beside a method's own (the thesis's, for the shipped grid): its
-    mean score and its success rate (a fraction), as the source reports them."""
-
-    score: float
-    success: float | None = None
-
-    def check(self, method: str) -> None:
-        for name in ("score", "success"):
-            value = getattr(self, name)
-            if value is None and name == "success":
-                continue
-            if type(value) not in (int, float) or not 0 <= value <= 1:
-                raise ValueError(f"method {method}: reference {name} must be a number in [0, 1], got {value!r}")
-
-
-@dataclass(frozen=True)
-class MethodConfig:
-    """One method of an experiment grid: the inest-train flags that make it, the reward model
-    folder it reads (none for the oracle) and, optionally, a published result to compare with."""
-
-    args: tuple[str, ...] = ()
-    model: str | None = None
-    reference: ReferenceResult | None = None
-
-    def check(self, name: str) -> None:
-        if not METHOD_NAME.fullmatch(name):
-            raise ValueError(f"method name {name!r} must be a folder name (letters, digits, '.', '_', '-')")
-        if not all(isinstance(arg, str) for arg in self.args):
-            raise ValueError(f"method {name}: args must be a list of inest-train flags and values (strings)")
-        taken = sorted({arg.split("=")[0] for arg in self.args} & set(GRID_FLAGS))
-        if taken:
-            raise ValueError(f"method {name}: the grid sets {taken} itself (the reward model folder is `model:`)")
-        if self.model is not None and not isinstance(self.model, str):
-            raise ValueError(f"method {name}: model must be a folder path, got {self.model!r}")
-        if self.reference is not None:
-            self.reference.check(name)
-
-
-def check_cell_text(text: object, what: str) -> None:
-    """Text the report prints in a heading or a table cell: one line, not blank, no '|'."""
-    if not isinstance(text, str) or not text.strip() or "\n" in text or "|" in text:
-        raise ValueError(f"{what} must be one line of text without '|', got {text!r}")
-
-
-@dataclass(frozen=True)
-class TableConfig:
-    """A comparison the report shows as its own table and learning-curve figure, like one of the
-    thesis's tables: a title and the grid's methods it compares."""
-
-    title: str
-    methods: tuple[str, ...]
-
-
-@dataclass(frozen=True)
-class GridConfig:
-    """An experiment grid (`inest-experiments`): every method trained with every seed for
-    `total_steps` from the training settings in `config`, each run in `out/<method>/seed<N>/`.
-    Relative paths are read from the working directory (the checkout's root)."""
-
-    methods: dict[str, MethodConfig]
-    seeds: tuple[int, ...] = (0, 1, 2)
-    total_steps: int = 500_000
-    config: str = "inest_agent_node/config/train.yaml"
-    out: str = "runs/grid"
-    # a demonstration dataset: the report scores every method's reward model on its validation
-    # split (reward MSE / MAE against the environment's reward); none: no quality table
-    demos: str | None = None
-    # comparisons, each its own table and figure in the report (none: one table of every method)
-    tables: dict[str, TableConfig] = field(default_factory=dict)
-    # the column the methods' `reference` results are shown in, naming where they come from
-    reference_label: str = "reference"
-
-    def __post_init__(self) -> None:
-        if not self.methods:
-            raise ValueError("the grid lists no methods")
-        for name, method in self.methods.items():
-            method.check(name)
-        if not self.seeds or not all(type(seed) is int and seed >= 0 for seed in self.seeds):
-            raise ValueError(f"seeds must be a non-empty list of integers >= 0, got {list(self.seeds)}")
-        if len(set(self.seeds)) != len(self.seeds):
-            raise ValueError(f"seeds must differ, got {list(self.seeds)}")
-        if type(self.total_steps) is not int or self.total_steps <= 0:
-            raise ValueError(f"total_steps must be a positive integer, got {self.total_steps!r}")
-        for name in ("config", "out"):
-            if not isinstance(getattr(self, name), str) or not getattr(self, name):
-                raise ValueError(f"{name} must be a path, got {getattr(self, name)!r}")
-        if self.demos is not None and (not isinstance(self.demos, str) or not self.demos):
-            raise ValueError(f"demos must be a dataset folder, got {self.demos!r}")
-        for key, table in self.tables.items():
-            if not isinstance(key, str) or not METHOD_NAME.fullmatch(key):
-                raise ValueError(f"table name {key!r} must be a file name (letters, digits, '.', '_', '-')")
-            check_cell_text(table.title, f"table {key}: title")
-            unknown = [method for method in table.methods if not isinstance(method, str) or method not in self.methods]
-            if not table.methods or unknown:
-                raise ValueError(f"table {key}: methods must be some of the grid's {list(self.methods)}, got {unknown}")
-            if len(set(table.methods)) != len(table.methods):
-                raise ValueError(f"table {key}: methods must differ, got {list(table.methods)}")
-        check_cell_text(self.reference_label, "reference_label")
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> GridConfig:
-        reject_unknown(data, {f.name for f in fields(cls)}, "grid setting(s)")
-        values = dict(data)
-        methods = values.get("methods")
-        if not isinstance(methods, dict):
-            raise ValueError("the grid needs `methods`: a mapping of method name to {args: [...], model: ...}")
-        parsed = {}
-        for name, method in methods.items():
-            method = method or {}
-            if not isinstance(method, dict):
-                raise ValueError(f"method {name} must be a mapping of args and model")
-            reject_unknown(method, {f.name for f in fields(MethodConfig)}, f"setting(s) of method {name}")
-            args = method.get("args") or []
-            if not isinstance(args, list):
-                raise ValueError(f"method {name}: args must be a list of inest-train flags and values")
-            reference = method.get("reference")
-            if reference is not None:
-                if not isinstance(reference, dict):
-                    raise ValueError(f"method {name}: reference must be a mapping of score and success")
-                reject_unknown(reference, {f.name for f in fields(ReferenceResult)}, f"reference setting(s) of {name}")
-                if "score" not in reference:
-                    raise ValueError(f"method {name}: reference needs a score")
-                reference = ReferenceResult(**reference)
-            parsed[str(name)] = MethodConfig(args=tuple(args), model=method.get("model"), reference=reference)
-        values["methods"] = parsed
-        tables = values.get("tables")
-        if tables is not None and not isinstance(tables, dict):
-            raise ValueError("tables must be a mapping of table name to {title: ..., methods: [...]}")
-        parsed_tables = {}
-        for key, table in (tables or {}).items():
-            if not isinstance(table, dict) or not isinstance(table.get("methods"), list):
-                raise ValueError(f"table {key} must be a mapping of a title and a list of methods")
-            reject_unknown(table, {f.name for f in fields(TableConfig)}, f"setting(s) of table {key}")
-            parsed_tables[key] = TableConfig(title=table.get("title", str(key)), methods=tuple(table["methods"]))
-        values["tables"] = parsed_tables
-        if "seeds" in values:
-            seeds = values["seeds"]
-            values["seeds"] = tuple(seeds) if isinstance(seeds, list) else (seeds,)
-        return cls(**values)
-
-    @classmethod
-    def from_yaml(cls, path: str | Path) -> GridConfig:
-        return cls.from_dict(read_yaml_mapping(path, "grid settings (methods, seeds, total_steps, config, out)"))

@@ -18,7 +18,7 @@ import numpy as np
 from inest_common.progress import track
 
 from ..runtime.methods import subtask_rewards
-from ..runtime.model import TCC_SCHEMES, ModelMetadata, RewardModel, SubtaskGoals
+from ..runtime.model import ModelMetadata, RewardModel, SubtaskGoals, model_kind
 from ..runtime.stage_window import StageWindow, window_features
 from .clips import Clip, clip_file_labels, load_clips, random_play, wrong_order_play
 from .config import CalibrationConfig, PretrainConfig
@@ -152,7 +152,7 @@ def calibrate(
     head_episodes = (
         stage_head_episodes(config, demos, plays + others) if calibration.stage_head.iterations else ([], [])
     )
-    schemes = {"tcc": TCC_SCHEMES, "reds": (config.reds.subtasks,)}.get(config.method, (1,))
+    schemes = (config.reds.subtasks,) if config.method == "reds" else model_kind(config.method).schemes
     result = {}
     for scheme in schemes:
         ends = [demo.ends[scheme] for demo in demos]

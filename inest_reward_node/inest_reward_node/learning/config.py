@@ -6,12 +6,12 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any, Literal
 
-from inest_common.settings import check_choices
+from inest_common.settings import CHOICES, check_choices
 from inest_sim_node.config import VIEWS
 
 from ..runtime.encoders import EncoderConfig
 from ..runtime.holdr import HoldRConfig
-from ..runtime.model import METHODS, TCC_SCHEMES
+from ..runtime.model import MODEL_KINDS, TCC_SCHEMES
 from ..runtime.reds import RedsConfig
 from ..runtime.shaping import ShapingConfig
 from ..runtime.stage_head import StageHeadConfig
@@ -91,7 +91,8 @@ class CalibrationConfig:
 @dataclass(frozen=True)
 class PretrainConfig:
     dataset: str  # the demonstration dataset folder (inest-collect-demos)
-    method: Literal[METHODS] = "tcc"  # the representation: TCC (XIRL, INEST), HOLD-R or REDS
+    # the representation (runtime/model.py MODEL_KINDS): tcc (XIRL, INEST), holdr or reds
+    method: str = field(default="tcc", metadata={CHOICES: lambda: tuple(MODEL_KINDS)})
     view: Literal[VIEWS] = "ego"  # the camera the encoder learns from
     encoder: EncoderConfig = field(default_factory=EncoderConfig)
     holdr: HoldRConfig = field(default_factory=HoldRConfig)
@@ -133,4 +134,5 @@ class PretrainConfig:
     def settings_that_matter(self) -> set[str]:
         """Fields that change what this method trains, which a resumed run must keep. `iterations`
         may grow; shaping and calibration only affect the goals computed at the end."""
-        return set(self.to_dict()) - UNUSED_SETTINGS[self.method] - {"iterations", "device", "shaping", "calibration"}
+        unused = UNUSED_SETTINGS.get(self.method, frozenset({"holdr", "reds"}))  # a kind added since: the others'
+        return set(self.to_dict()) - unused - {"iterations", "device", "shaping", "calibration"}

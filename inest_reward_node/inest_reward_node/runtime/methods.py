@@ -15,16 +15,14 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from .config import RewardConfig
-from .model import ModelError, RewardModel, SubtaskGoals
+from .model import ModelError, RewardModel, SubtaskGoals, model_kind
 from .shaping import distance_reward
 
 
 def default_variant(model: RewardModel, scheme: int) -> str:
-    """The method a model was trained for: holdr and reds models their own, TCC models xirl with
-    one subtask and inest with more."""
-    if model.method in ("holdr", "reds"):
-        return model.method
-    return "xirl" if scheme == 1 else "inest"
+    """The method a model was trained for (its ModelKind's): holdr and reds models their own, TCC
+    models xirl with one subtask and inest with more."""
+    return model_kind(model.method).default_reward(scheme)
 
 
 def inest_distance_unit(model: RewardModel, goals: SubtaskGoals) -> float:

@@ -17,6 +17,7 @@ Loading checks the caller's expectations (view, size, scheme). `ModelMetadata` i
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,7 +43,6 @@ MODEL_FORMAT = "inest-reward-model"
 MODEL_FORMAT_VERSION = 1
 WEIGHTS_FILE = "weights.safetensors"
 MODEL_FILE = "model.json"
-METHODS = ("tcc", "holdr", "reds")
 TCC_SCHEMES = (1, 3, 6)  # the subtask schemes a TCC model is calibrated for
 # the reward model the product ships, relative to the checkout: its scores, and the trained policy
 # that uses it, are in docs/reports/early-models.md
@@ -54,17 +54,49 @@ class ModelError(RuntimeError):
     """A model folder is missing, corrupt, or does not match what the caller needs."""
 
 
+@dataclass(frozen=True)
+class ModelKind:
+    """A kind of reward model (model.json's `method`, inest-pretrain --method): how its network is
+    built from the encoder settings and its own settings (HOLD-R's and REDS's; None for a kind
+    without), the subtask schemes calibration gives it goals for, and the reward methods
+    (runtime/methods.py) that score with it by default, for one subtask and for several. A new
+    kind is one entry here, its objective in learning/objectives.py and its reward method
+    (docs/design.md, "Adding a reward method")."""
+
+    name: str
+    build: Callable[[EncoderConfig, Any], nn.Module]
+    rewards: tuple[str, str]
+    schemes: tuple[int, ...] = (1,)
+
+    def default_reward(self, scheme: int) -> str:
+        return self.rewards[scheme > 1]
+
+
+def build_holdr(encoder: EncoderConfig, settings: HoldRConfig | None) -> nn.Module:
+    network = HoldR(settings or HoldRConfig(), encoder.image_size)
+    return network.to(memory_format=torch.channels_last) if encoder.channels_last else network
+
+
+MODEL_KINDS: dict[str, ModelKind] = {
+    kind.name: kind
+    for kind in (
+        ModelKind("tcc", lambda encoder, _: build_encoder(encoder), ("xirl", "inest"), TCC_SCHEMES),
+        ModelKind("holdr", build_holdr, ("holdr", "holdr")),
+        ModelKind("reds", lambda encoder, settings: Reds(settings or RedsConfig(), encoder), ("reds", "reds")),
+    )
+}
+
+
+def model_kind(method: str) -> ModelKind:
+    if method not in MODEL_KINDS:
+        raise ValueError(f"unknown method {method!r}; expected one of {tuple(MODEL_KINDS)}")
+    return MODEL_KINDS[method]
+
+
 def build_network(
     method: str, encoder: EncoderConfig, holdr: HoldRConfig | None = None, reds: RedsConfig | None = None
 ) -> nn.Module:
-    if method == "tcc":
-        return build_encoder(encoder)
-    if method == "holdr":
-        network = HoldR(holdr or HoldRConfig(), encoder.image_size)
-        return network.to(memory_format=torch.channels_last) if encoder.channels_last else network
-    if method == "reds":
-        return Reds(reds or RedsConfig(), encoder)
-    raise ValueError(f"unknown method {method!r}; expected one of {METHODS}")
+    return model_kind(method).build(encoder, {"holdr": holdr, "reds": reds}.get(method))
 
 
 RECALIBRATE_HINT = (

@@ -4,7 +4,7 @@ Writes ROOT/summary.json (per run: method, seed, steps, mean_score, success_rate
 from its 150-episode final evaluation, the layouts it was on (`test`, or `legacy` for runs before
 the validation/test split), validation_mean_score, the reward's labelled_episodes and cameras
 (its model's supervision record), reward_shares, training_s, its training wall-clock seconds, and
-reward_diagnostics, the first and last window of its reward diagnostics (diagnostics.py); per
+reward_diagnostics, the first and last window of its reward diagnostics (inest_agent_node/diagnostics.py); per
 method: the mean over seeds with a 95 % bootstrap interval, `mean_score_ci95`, and a 95 % Student t
 interval, `mean_score_t95`) and ROOT/learning_curves.png (per
 method the mean evaluation score across seeds, with the band between the lowest and highest
@@ -23,11 +23,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from inest_agent_node.train import CHECKPOINT_DIR, HISTORY_FILE, RESULTS_FILE
 from inest_reward_node.learning.calibrate import recorded_supervision
 from inest_reward_node.runtime.model import ModelError, model_folder, read_model_metadata
 from scipy import stats
-
-from .train import CHECKPOINT_DIR, HISTORY_FILE, RESULTS_FILE
 
 SUMMARY_FILE = "summary.json"
 CURVES_FILE = "learning_curves.png"

@@ -16,13 +16,12 @@ import sys
 import time
 from pathlib import Path
 
+from inest_agent_node.envs import build_env
+from inest_agent_node.evaluate import EvalResult, evaluate_vec_env, format_table, layouts
+from inest_agent_node.policy_export import POLICY_DIR, load_policy
+from inest_agent_node.stage_refit import REFIT_MODEL_DIR
 from inest_common.files import write_atomic
 from inest_reward_node.runtime.model import ModelError
-
-from .envs import build_env
-from .evaluate import EvalResult, evaluate_vec_env, format_table, layouts
-from .policy_export import POLICY_DIR, load_policy
-from .stage_refit import REFIT_MODEL_DIR
 
 EVALUATIONS_DIR = "evaluations"
 MAX_ENVS = 10  # episodes played side by side (one encoder pass for all their frames)
@@ -34,9 +33,9 @@ def run_home(run: Path) -> Path:
 
 
 def reevaluate(run: Path, spec: str, episodes: int) -> tuple[EvalResult, dict]:
-    """The run's exported policy on the layouts `spec` (evaluate.layouts, of the run's seed)."""
+    """The run's exported policy on the layouts `spec` (inest_agent_node.evaluate.layouts, of the run's seed)."""
     policy = load_policy(run)
-    refitted = run_home(run) / REFIT_MODEL_DIR  # the stage classifier the run refitted last (stage_refit.py)
+    refitted = run_home(run) / REFIT_MODEL_DIR  # the stage classifier the run refitted last (stage_refit)
     config = dataclasses.replace(policy.config, model=str(refitted)) if refitted.exists() else policy.config
     on = layouts(spec, config.seed)
     on.check(episodes)

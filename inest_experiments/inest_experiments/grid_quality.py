@@ -26,7 +26,7 @@ from inest_reward_node.runtime.config import RewardConfig
 from inest_reward_node.runtime.model import ModelError, load_model
 from inest_sim_node.dataset import DatasetError
 
-from .config import reward_scheme
+from inest_agent_node.config import reward_scheme
 
 QUALITY_DIR = "quality"
 SCORED_FILE = "scored.json"  # what the kept report scored: reused only for the same

@@ -19,16 +19,16 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from inest_agent_node.envs import FRAME_KEY, TRUE_PROGRESS, build_env
+from inest_agent_node.learners import configure_jax_threads, learner_class
+from inest_agent_node.rewards import build_reward
+from inest_agent_node.train import CHECKPOINT_DIR
 from inest_common.progress import track
 from inest_reward_node.learning.clips import Clip, save_clips
 from inest_reward_node.runtime.model import ModelError
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from .config import TrainConfig
-from .envs import FRAME_KEY, TRUE_PROGRESS, build_env
-from .learners import configure_jax_threads, learner_class
-from .rewards import build_reward
-from .train import CHECKPOINT_DIR
+from inest_agent_node.config import TrainConfig
 
 CLIP_SEED = 42_000_000  # layouts no demonstration, training, evaluation or calibration episode uses
 ENVS = 10

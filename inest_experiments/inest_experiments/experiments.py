@@ -1,7 +1,7 @@
 """`inest-experiments`: the thesis's experiments as one resumable grid of `inest-train` runs.
 
 `inest-experiments run GRID.yaml [METHOD ...]` trains every method x seed of the grid
-(config.GridConfig; example: config/grid.yaml) in OUT/<method>/seed<N>/, the layout
+(config.GridConfig; example: inest_agent_node/config/grid.yaml) in OUT/<method>/seed<N>/, the layout
 `inest-summarise` reads, with the cell's output in OUT/<method>/seed<N>.log. A cell holding
 results.json is finished and skipped; one with a checkpoint is continued with `--resume`, one
 stopped before its first checkpoint trained again (`--start-over`); so
@@ -47,20 +47,29 @@ from typing import Any
 
 import numpy as np
 import yaml
+from inest_agent_node.diagnostics import EARLY_CLAIM_STEPS
+from inest_agent_node.labelled_rollouts import LABELLED_FILE
+from inest_agent_node.policy_export import ACTOR_FILE, POLICY_DIR, POLICY_FILE
+from inest_agent_node.stage_refit import REFIT_MODEL_DIR
+from inest_agent_node.train import (
+    CHECKPOINT_DIR,
+    DIAGNOSTICS_FILE,
+    HISTORY_FILE,
+    RESULTS_FILE,
+    continuation_flags,
+    parse_args,
+)
 from inest_common.files import checkout_relative, read_json, read_run_file, write_atomic
 from inest_common.processes import dies_with_parent
 from inest_common.progress import track
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings
 from inest_reward_node.runtime.model import MODEL_FILE, WEIGHTS_FILE
 
-from .config import SPEED_ONLY_SETTINGS, GridConfig, ReferenceResult, setting_defaults
-from .diagnostics import EARLY_CLAIM_STEPS
+from inest_agent_node.config import SPEED_ONLY_SETTINGS, setting_defaults
+
+from .config import GridConfig, ReferenceResult
 from .grid_quality import QUALITY_DIR, quality_table
-from .labelled_rollouts import LABELLED_FILE
-from .policy_export import ACTOR_FILE, POLICY_DIR, POLICY_FILE
-from .stage_refit import REFIT_MODEL_DIR
 from .summary import CURVES_FILE, SUMMARY_FILE, plot_curves, read_run, summarise, write_summary
-from .train import CHECKPOINT_DIR, DIAGNOSTICS_FILE, HISTORY_FILE, RESULTS_FILE, continuation_flags, parse_args
 
 GRID_FILE = "grid.json"
 REPORT_FILE = "report.md"
@@ -359,7 +368,7 @@ def rankings(methods: list[str], summary: dict[str, Any]) -> list[str]:
     return [line for interval in RANKINGS if (line := ranking(methods, summary, interval))]
 
 
-# the reward diagnostics the report shows (diagnostics.py), as column title and key
+# the reward diagnostics the report shows (inest_agent_node/diagnostics.py), as column title and key
 DIAGNOSTIC_COLUMNS = {
     "reward / step": "reward_per_step",
     "shaping / step": "shaping_per_step",

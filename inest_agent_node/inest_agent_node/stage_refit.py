@@ -122,9 +122,8 @@ class StageRefit:
         model, hold_steps = self.scorer.model, self.scorer.hold_steps
         settings = {name: model.metadata.calibration[name] for name in RAISING if name in model.metadata.calibration}
         calibration = dataclasses.replace(CalibrationConfig(), **settings)
-        subtask_rewards = self.scorer.reward.subtask_rewards
-        rewards = [subtask_rewards(model, embeddings, goals) for embeddings in self.demo_embeddings]
-        played = [(subtask_rewards(model, embeddings, goals), stages) for embeddings, stages in episodes]
+        rewards = [self.scorer.subtask_rewards(embeddings, goals) for embeddings in self.demo_embeddings]
+        played = [(self.scorer.subtask_rewards(embeddings, goals), stages) for embeddings, stages in episodes]
         return [
             raised_threshold(
                 threshold,

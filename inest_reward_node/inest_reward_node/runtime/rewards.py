@@ -160,6 +160,11 @@ class RewardScorer:
         self.steps_since_switch = np.full(num_envs, -1)
         self.memories: list[NoveltyMemory] = []
 
+    def subtask_rewards(self, embeddings: np.ndarray, goals: SubtaskGoals | None = None) -> np.ndarray:
+        """(N, subtasks): the frames' completion-test rewards against `goals` (default: the
+        scorer's), what its trackers hold against the thresholds."""
+        return self.reward.subtask_rewards(self.model, embeddings, self.goals if goals is None else goals)
+
     def use_goals(self, goals: SubtaskGoals) -> None:
         """A recalibration of the same subtask goals (refitted stage classifier, raised thresholds),
         read from the next frame on; the trackers keep their episodes' stages."""
@@ -275,7 +280,7 @@ class RewardScorer:
         `known_stages`: each frame's true stage (the privileged diagnostic, `needs_known_stages`)."""
         count = len(embeddings)
         envs, rounds, ends = Steps(envs, rounds, episode_ends).rows(count, self.num_envs)
-        per_subtask = self.reward.subtask_rewards(self.model, embeddings, self.goals)
+        per_subtask = self.subtask_rewards(embeddings)
         segments = self.segments(embeddings)
         at_least = self.classifier.at_least(embeddings) if self.classifier is not None else None
         if self.stage_head is not None:

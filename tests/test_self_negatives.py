@@ -8,12 +8,12 @@ import json
 
 import numpy as np
 import pytest
-from inest_agent_node.labelled_rollouts import LABELLED_FILE, RolloutLabelling
-from inest_agent_node.self_negatives import CONFIRM_WITHIN, SelfNegatives
-from inest_agent_node.stage_refit import REFIT_MODEL_DIR, StageRefit
 from inest_agent_node.train import Trainer
 from inest_experiments.summary import reward_supervision
 from inest_reward_node.learning.data import load_demos
+from inest_reward_node.learning.labelled_rollouts import LABELLED_FILE, RolloutLabelling
+from inest_reward_node.learning.self_negatives import CONFIRM_WITHIN, SelfNegatives
+from inest_reward_node.learning.stage_refit import REFIT_MODEL_DIR, StageRefit
 from inest_reward_node.learning.task_stages import PROGRESS_FIELD
 from inest_reward_node.runtime.config import RewardConfig
 from inest_reward_node.runtime.model import load_model

@@ -25,13 +25,13 @@ from pathlib import Path
 from typing import Protocol
 
 from inest_common.progress import track
+from inest_reward_node.learning.stage_refit import StageRefit
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from tqdm import tqdm
 
 from .config import TrainConfig
 from .diagnostics import RewardDiagnostics
 from .evaluate import EvalResult
-from .stage_refit import StageRefit
 
 
 class Trainer(Protocol):

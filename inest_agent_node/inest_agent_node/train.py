@@ -26,7 +26,10 @@ import yaml
 from inest_common.files import RunFileError, read_json, read_run_file, write_atomic
 from inest_common.settings import add_setting_flags
 from inest_reward_node.learning.coverage import measure_coverage, plot_coverage
+from inest_reward_node.learning.labelled_rollouts import RolloutLabelling
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings, prepare_run_dir
+from inest_reward_node.learning.self_negatives import SelfNegatives
+from inest_reward_node.learning.stage_refit import REFIT_MODEL_DIR, StageRefit
 from inest_reward_node.runtime.model import ModelError, load_model
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, unwrap_vec_wrapper
@@ -35,7 +38,6 @@ from .callbacks import training_callbacks
 from .config import SPEED_ONLY_SETTINGS, TrainConfig, setting_defaults
 from .envs import ConcurrentUpdatesVecEnv, RewardVecEnv, build_env
 from .evaluate import TEST, VALIDATION, EvalResult, Layouts, evaluate_vec_env, format_table, plot_learning_curve
-from .labelled_rollouts import RolloutLabelling
 from .learners import (
     OverlappedUpdatesMixin,
     RewardBatchingMixin,
@@ -45,8 +47,6 @@ from .learners import (
 )
 from .policy_export import EXPORTABLE, POLICY_DIR, export_policy, exported
 from .replay_store import load_replay_buffer, save_replay_buffer
-from .self_negatives import SelfNegatives
-from .stage_refit import REFIT_MODEL_DIR, StageRefit
 
 CHECKPOINT_DIR = "checkpoint"
 RESULTS_FILE = "results.json"

@@ -48,9 +48,7 @@ from typing import Any
 import numpy as np
 import yaml
 from inest_agent_node.diagnostics import EARLY_CLAIM_STEPS
-from inest_agent_node.labelled_rollouts import LABELLED_FILE
 from inest_agent_node.policy_export import ACTOR_FILE, POLICY_DIR, POLICY_FILE
-from inest_agent_node.stage_refit import REFIT_MODEL_DIR
 from inest_agent_node.train import (
     CHECKPOINT_DIR,
     DIAGNOSTICS_FILE,
@@ -62,7 +60,9 @@ from inest_agent_node.train import (
 from inest_common.files import checkout_relative, read_json, read_run_file, write_atomic
 from inest_common.processes import dies_with_parent
 from inest_common.progress import track
+from inest_reward_node.learning.labelled_rollouts import LABELLED_FILE
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings
+from inest_reward_node.learning.stage_refit import REFIT_MODEL_DIR
 from inest_reward_node.runtime.model import MODEL_FILE, WEIGHTS_FILE
 
 from inest_agent_node.config import SPEED_ONLY_SETTINGS, setting_defaults

@@ -19,8 +19,8 @@ from pathlib import Path
 from inest_agent_node.envs import build_env
 from inest_agent_node.evaluate import EvalResult, evaluate_vec_env, format_table, layouts
 from inest_agent_node.policy_export import POLICY_DIR, load_policy
-from inest_agent_node.stage_refit import REFIT_MODEL_DIR
 from inest_common.files import write_atomic
+from inest_reward_node.learning.stage_refit import REFIT_MODEL_DIR
 from inest_reward_node.runtime.model import ModelError
 
 EVALUATIONS_DIR = "evaluations"

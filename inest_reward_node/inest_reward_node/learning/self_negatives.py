@@ -15,7 +15,8 @@ from collections import deque
 from typing import NamedTuple
 
 import numpy as np
-from inest_reward_node.runtime.rewards import RewardParts, RewardScorer
+
+from ..runtime.rewards import RewardParts, RewardScorer
 
 CONFIRM_WITHIN = 10  # frames a claim has to be confirmed in before it counts as a negative
 CAPACITY = 20_000  # negatives kept, newest first

@@ -17,8 +17,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from inest_reward_node.learning.task_stages import privileged_stages
-from inest_reward_node.runtime.rewards import RewardParts, Steps
+
+from ..runtime.rewards import RewardParts, Steps
+from .task_stages import privileged_stages
 
 LABELLED_FILE = "labelled-rollouts.npz"
 

@@ -20,17 +20,17 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
-from inest_reward_node.learning.calibrate import raised_threshold
-from inest_reward_node.learning.clips import Clip, load_clips, random_play, wrong_order_play
-from inest_reward_node.learning.config import CalibrationConfig
-from inest_reward_node.learning.data import load_demos
-from inest_reward_node.learning.stage_fitting import StageClassifierConfig, fit_stage_classifier
-from inest_reward_node.learning.task_stages import demo_stages, true_stages
-from inest_reward_node.runtime.model import RewardModel, SubtaskGoals, save_model
-from inest_reward_node.runtime.rewards import RewardParts, RewardScorer, Steps
 
+from ..runtime.model import RewardModel, SubtaskGoals, save_model
+from ..runtime.rewards import RewardParts, RewardScorer, Steps
+from .calibrate import raised_threshold
+from .clips import Clip, load_clips, random_play, wrong_order_play
+from .config import CalibrationConfig
+from .data import load_demos
 from .labelled_rollouts import RolloutLabelling
 from .self_negatives import SelfNegatives
+from .stage_fitting import StageClassifierConfig, fit_stage_classifier
+from .task_stages import demo_stages, true_stages
 
 REFIT_MODEL_DIR = "reward-model"
 DEMOS = 200  # training demonstrations whose frames the refit keeps the classifier anchored to

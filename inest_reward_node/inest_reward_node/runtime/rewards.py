@@ -96,7 +96,9 @@ class RewardScorer:
     next episode: its tracker restarts, the exploration memories are kept. `variant` names the
     method (methods.REWARD_METHODS; None: the model's own for `scheme`), `config` (None: the
     RewardConfig defaults) chooses shaping, tracker and stage source; THESIS_REWARD is the
-    thesis's reward exactly.
+    thesis's reward exactly. What a caller may read (the stage refit does): `model`, `goals`,
+    `num_subtasks`, `hold_steps` (the frames a tracker's test must hold), `classifier` (the
+    embedding's stage classifier, None when the stage evidence is another), `subtask_rewards`.
     """
 
     def __init__(

@@ -128,6 +128,7 @@ def test_corrupt_run_files_and_an_empty_resume_are_one_line_and_exit_2(saved_run
         for name, run in runs.items()
     }
     empty = start(tmp_path, "inest-train", "--out", str(tmp_path / "never-ran"), "--config", config, "--resume")
+    bare = start(tmp_path, "inest-train", "--out", str(tmp_path / "never-ran"), "--resume")  # no settings given
     agent = start(
         tmp_path, "inest-agent-node", "--ros-args", "-p", "resume:=true", "-p", f"out:={tmp_path / 'no-agent-run'}"
     )
@@ -135,6 +136,7 @@ def test_corrupt_run_files_and_an_empty_resume_are_one_line_and_exit_2(saved_run
         assert_refused(process, "inest-train: cannot read", str(runs[name] / "checkpoint" / name))
         assert (runs[name] / "checkpoint" / name).read_bytes() == before[name]  # nothing saved is lost
     assert_refused(empty, f"nothing to resume in {tmp_path / 'never-ran'}")
+    assert_refused(bare, f"nothing to resume in {tmp_path / 'never-ran'}")  # not "the reward needs a model"
     pretrain = start(tmp_path, "inest-pretrain", str(tmp_path / "no-dataset"), "--out", str(tmp_path / "no-model"))
     assert_refused(pretrain, f"inest-pretrain: no dataset at {tmp_path / 'no-dataset'}")
     assert not (tmp_path / "no-model").exists()  # nothing written before the refusal: a rerun is not blocked

@@ -5,6 +5,9 @@ from __future__ import annotations
 import dataclasses
 import json
 import shutil
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -65,6 +68,20 @@ def test_missing_or_corrupt_model_files_are_reported(tiny_tcc_run, tmp_path):
     (broken / MODEL_FILE).write_text("{")
     with pytest.raises(ModelError, match="corrupt"):
         load_model(broken)
+
+
+def test_weights_of_another_architecture_are_one_short_line(tiny_tcc_run, tmp_path):
+    config, run_dir = tiny_tcc_run
+    other = tmp_path / "other"
+    shutil.copytree(run_dir / "model", other)
+    document = json.loads((other / MODEL_FILE).read_text())
+    document["encoder"]["widths"] = [16, 32, 32, 32]  # the weights were trained with the default widths
+    (other / MODEL_FILE).write_text(json.dumps(document))
+    command = [Path(sys.executable).parent / "inest-reward-quality", other, config.dataset, "--out", tmp_path / "q"]
+    run = subprocess.run(command, capture_output=True, text=True, check=False)
+    assert run.returncode == 2 and "Traceback" not in run.stderr, run.stderr
+    assert len(run.stderr.strip().splitlines()) == 1 and len(run.stderr) < 400, run.stderr
+    assert "weights of another architecture" in run.stderr and "of another shape (first " in run.stderr
 
 
 def test_typed_metadata_writes_back_the_document_it_was_read_from(tiny_tcc_run):

@@ -386,6 +386,8 @@ def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]
     args = parser.parse_args(argv)
     if args.out is None and not args.print_config:
         parser.error("the following arguments are required: --out")
+    if args.resume:  # a run with nothing to resume says so, whatever settings the flags lack
+        check_resume(Path(args.out), resume=True, start_over=False)
     overrides = settings.overrides(args)
     intrinsic = overrides.setdefault("intrinsic", {})
     if "mode" not in intrinsic and overrides.get("reward", "inest") != "inest":

@@ -378,6 +378,29 @@ def encoder_digest(folder: str | Path) -> str:
     return sha256_of(model_folder(folder) / WEIGHTS_FILE)
 
 
+def load_weights(network: nn.Module, tensors: dict[str, torch.Tensor], source: Path) -> None:
+    """`tensors` into `network`; weights made for another architecture than model.json describes
+    are one short ModelError saying how they differ (torch's own message lists every tensor)."""
+    expected = network.state_dict()
+    missing = sorted(set(expected) - set(tensors))
+    unexpected = sorted(set(tensors) - set(expected))
+    reshaped = sorted(name for name in set(expected) & set(tensors) if expected[name].shape != tensors[name].shape)
+    differences = []
+    if missing:
+        differences.append(f"{len(missing)} tensor(s) missing (first {missing[0]})")
+    if unexpected:
+        differences.append(f"{len(unexpected)} the network lacks (first {unexpected[0]})")
+    if reshaped:
+        name = reshaped[0]
+        shapes = f"{tuple(tensors[name].shape)} where the network has {tuple(expected[name].shape)}"
+        differences.append(f"{len(reshaped)} of another shape (first {name}: {shapes})")
+    if differences:
+        raise ModelError(
+            f"{source} holds weights of another architecture than its {MODEL_FILE} describes: {'; '.join(differences)}"
+        )
+    network.load_state_dict(tensors)
+
+
 def load_model(
     folder: str | Path, view: str | None = None, image_size: int | None = None, scheme: int | None = None
 ) -> RewardModel:
@@ -390,7 +413,7 @@ def load_model(
         raise ModelError(f"{folder / MODEL_FILE} is a reds model without its `reds` network settings")
     network = build_network(metadata.method, metadata.encoder, metadata.holdr, metadata.reds)
     try:
-        network.load_state_dict(load_file(str(folder / WEIGHTS_FILE)))
+        load_weights(network, load_file(str(folder / WEIGHTS_FILE)), folder / WEIGHTS_FILE)
     except (FileNotFoundError, SafetensorError, RuntimeError) as error:
         raise ModelError(f"cannot load weights from {folder / WEIGHTS_FILE}: {error}") from error
     heads = {scheme: goals.stage_head for scheme, goals in metadata.subtasks.items() if goals.stage_head is not None}
@@ -399,8 +422,10 @@ def load_model(
             tensors = load_file(str(folder / STAGE_HEADS_FILE))
             for scheme, head in heads.items():
                 prefix = f"{scheme}."
-                head.network.load_state_dict(
-                    {name[len(prefix) :]: tensor for name, tensor in tensors.items() if name.startswith(prefix)}
+                load_weights(
+                    head.network,
+                    {name[len(prefix) :]: tensor for name, tensor in tensors.items() if name.startswith(prefix)},
+                    folder / STAGE_HEADS_FILE,
                 )
         except (FileNotFoundError, SafetensorError, RuntimeError) as error:
             raise ModelError(f"cannot load the stage heads from {folder / STAGE_HEADS_FILE}: {error}") from error

@@ -12,11 +12,14 @@ Modes:
   waiting) re-publishes that step's outputs instead of stepping twice; a reset before the
   episode's first step (a request asked again) answers with that episode instead of starting another.
 - realtime (watching, teleoperation, a live policy): steps at the control rate holding the last
-  action, starting a new episode after each truncation.
+  action, starting a new episode after each truncation. Before an episode it starts itself, it
+  asks the reward node serving its stream, if one does, to reset that stream's reward
+  (`reset_reward`, std_srvs/Trigger), so that the new episode is not paid the last one's subtask.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,11 +30,13 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image
+from std_srvs.srv import Trigger
 
 from .config import VIEWS, EnvConfig
 from .env import SweepToTopEnv, validate_action
 
 MODES = ("lockstep", "realtime")
+REWARD_RESET_TIMEOUT_NS = 1_000_000_000  # a reward node that does not answer its reset by then is not waited for
 
 
 @dataclass(frozen=True)
@@ -77,6 +82,8 @@ class SimNode(Node):
         self.held_action = np.zeros(3)
         self.env_reward = 0.0
         self.last_outputs: list[tuple[object, object]] = []
+        self.reward_reset = self.create_client(Trigger, "reset_reward") if config.mode == "realtime" else None
+        self.reward_reset_asked_ns: int | None = None  # when the pending reward reset was asked (realtime)
         self.start_episode(-1)
         if config.mode == "realtime":
             self.create_timer(self.period_ns / 1e9, self.on_tick)
@@ -162,10 +169,31 @@ class SimNode(Node):
             )
 
     def on_tick(self) -> None:
-        if self.done:
+        if self.reward_reset_asked_ns is not None:
+            if time.monotonic_ns() - self.reward_reset_asked_ns < REWARD_RESET_TIMEOUT_NS:
+                return  # the episode starts when the reward node has reset
+            self.get_logger().warning("the reward node did not answer its reset within 1 s: starting without it")
+            self.reward_reset_asked_ns = None
             self.start_episode(-1)
+        elif self.done:
+            self.begin_own_episode()
         else:
             self.step(self.held_action, 0)
+
+    def begin_own_episode(self) -> None:
+        """A new episode the simulator starts itself: the reward node serving this stream resets
+        its reward first, where there is one (no node, no reset: a plain watching graph)."""
+        if not self.reward_reset.service_is_ready():
+            self.start_episode(-1)
+            return
+        self.reward_reset_asked_ns = time.monotonic_ns()
+        self.reward_reset.call_async(Trigger.Request()).add_done_callback(self.on_reward_reset)
+
+    def on_reward_reset(self, _answer: object) -> None:
+        if self.reward_reset_asked_ns is None:
+            return  # answered after the timeout: the episode has started already
+        self.reward_reset_asked_ns = None
+        self.start_episode(-1)
 
     def on_reset(self, request: ResetEpisode.Request, response: ResetEpisode.Response) -> ResetEpisode.Response:
         # a reset before the episode's first step answers with that episode: a request asked again

@@ -8,8 +8,10 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
+import rclpy
 from inest_bringup.launcher import graph_environment
 
 BIN = Path(sys.executable).parent
@@ -35,6 +37,20 @@ class Processes:
         process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=self.env, cwd=self.log_dir)
         self.running[name] = process
         return process
+
+    def watch(self, msg_type: type, topic: str, enough: Callable[[list], bool], timeout: float = 90) -> list:
+        """The messages of `topic` on this graph's domain, until `enough(messages)` or `timeout` s."""
+        rclpy.init(domain_id=int(self.env["ROS_DOMAIN_ID"]))
+        messages: list = []
+        try:
+            node = rclpy.create_node("watcher")
+            node.create_subscription(msg_type, topic, messages.append, 50)
+            deadline = time.monotonic() + timeout
+            while not enough(messages) and time.monotonic() < deadline:
+                rclpy.spin_once(node, timeout_sec=0.05)
+        finally:
+            rclpy.shutdown()
+        return messages
 
     def log(self, name: str) -> str:
         return (self.log_dir / f"{name}.log").read_text()

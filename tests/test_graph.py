@@ -337,16 +337,7 @@ def test_a_watching_graph_resets_the_reward_at_every_episode_the_simulator_start
     steps = 5
     graph.start("reward", *reward_node_args(tiny_model, "-p", "streams:=[sim0]"))
     graph.start("sim0", *sim_node_args("sim0", "-p", "mode:=realtime", "-p", f"max_steps:={steps}"))
-    rclpy.init(domain_id=int(graph.env["ROS_DOMAIN_ID"]))
-    try:
-        node = rclpy.create_node("watcher")
-        rewards: list[Reward] = []
-        node.create_subscription(Reward, "sim0/reward", rewards.append, 50)
-        deadline = time.monotonic() + 90
-        while sum(reward.episode_frame == 1 for reward in rewards) < 4 and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.05)
-    finally:
-        rclpy.shutdown()
+    rewards = graph.watch(Reward, "sim0/reward", lambda rewards: sum(r.episode_frame == 1 for r in rewards) >= 4)
     frames = [reward.episode_frame for reward in rewards]
     assert frames.count(1) >= 4, (frames, graph.log("reward"), graph.log("sim0"))
     assert max(frames) <= steps + 1, frames  # never counted across an episode: each starts at 1 again

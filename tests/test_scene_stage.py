@@ -8,11 +8,9 @@ import dataclasses
 import json
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
-import rclpy
 from foreign_camera import PERIOD_NS
 from inest_agent_node.envs import LEARNED_STAGE, STAGE_FRAME_KEY, build_env
 from inest_interfaces.msg import Reward
@@ -164,16 +162,7 @@ def test_the_reward_node_pairs_the_simulators_two_cameras(graph, scene_model):
     graph.start(
         "reward", *reward_node_args(scene_model[0], "-p", "streams:=[sim0]", "-p", "reward.stage_evidence:=pixels")
     )
-    rclpy.init(domain_id=int(graph.env["ROS_DOMAIN_ID"]))
-    try:
-        node = rclpy.create_node("watcher")
-        rewards: list[Reward] = []
-        node.create_subscription(Reward, "sim0/reward", rewards.append, 50)
-        deadline = time.monotonic() + 90
-        while len(rewards) < 8 and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.05)
-    finally:
-        rclpy.shutdown()
+    rewards = graph.watch(Reward, "sim0/reward", lambda rewards: len(rewards) >= 8)
     assert len(rewards) >= 8, graph.log("reward")
     stamps = [(r.header.stamp.sec, r.header.stamp.nanosec) for r in rewards]
     assert stamps == sorted(set(stamps)) and all(np.isfinite(r.total) for r in rewards)

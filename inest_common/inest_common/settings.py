@@ -211,15 +211,21 @@ def _default_of(field: dataclasses.Field) -> Any:
     return None
 
 
-def build_settings(cls: type, data: Mapping[str, Any], what: str = "setting(s)") -> Any:
-    """`cls` from a nested mapping (a YAML file, merged flags): nested dataclasses from their
-    mappings, lists as tuples; an unknown key or a value of the wrong kind is one ValueError."""
+def reject_unknown(data: Mapping[Any, Any], cls: type, what: str) -> None:
+    """One ValueError naming the keys of `data` that are no field of the dataclass `cls`, with the
+    closest field to the first of them."""
     known = {field.name for field in dataclasses.fields(cls)}
     unknown = sorted(set(data) - known, key=str)
     if unknown:
         close = difflib.get_close_matches(str(unknown[0]), known, 1)
         hint = f" (did you mean {close[0]}?)" if close else ""
         raise ValueError(f"unknown {what} {unknown}{hint}; expected some of {sorted(known)}")
+
+
+def build_settings(cls: type, data: Mapping[str, Any], what: str = "setting(s)") -> Any:
+    """`cls` from a nested mapping (a YAML file, merged flags): nested dataclasses from their
+    mappings, lists as tuples; an unknown key or a value of the wrong kind is one ValueError."""
+    reject_unknown(data, cls, what)
     values: dict[str, Any] = {}
     for name, value in data.items():
         described = field_types(cls)[name]

@@ -4,18 +4,13 @@ files stay in the agent's config folder (`inest_agent_node/config/grid.yaml` and
 from __future__ import annotations
 
 import re
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from inest_common.settings import reject_unknown
+
 from inest_agent_node.config import read_yaml_mapping
-
-
-def reject_unknown(data: dict[str, Any], known: set[str], what: str) -> None:
-    unknown = sorted(set(data) - known, key=str)
-    if unknown:
-        raise ValueError(f"unknown {what} {unknown}; expected some of {sorted(known)}")
-
 
 # inest-train flags an experiment grid sets for every cell itself (experiments.py); `model` has its own key
 GRID_FLAGS = ("--config", "--out", "--seed", "--threads", "--total-steps", "--resume", "--model")
@@ -128,7 +123,7 @@ class GridConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> GridConfig:
-        reject_unknown(data, {f.name for f in fields(cls)}, "grid setting(s)")
+        reject_unknown(data, cls, "grid setting(s)")
         values = dict(data)
         methods = values.get("methods")
         if not isinstance(methods, dict):
@@ -138,7 +133,7 @@ class GridConfig:
             method = method or {}
             if not isinstance(method, dict):
                 raise ValueError(f"method {name} must be a mapping of args and model")
-            reject_unknown(method, {f.name for f in fields(MethodConfig)}, f"setting(s) of method {name}")
+            reject_unknown(method, MethodConfig, f"setting(s) of method {name}")
             args = method.get("args") or []
             if not isinstance(args, list):
                 raise ValueError(f"method {name}: args must be a list of inest-train flags and values")
@@ -146,7 +141,7 @@ class GridConfig:
             if reference is not None:
                 if not isinstance(reference, dict):
                     raise ValueError(f"method {name}: reference must be a mapping of score and success")
-                reject_unknown(reference, {f.name for f in fields(ReferenceResult)}, f"reference setting(s) of {name}")
+                reject_unknown(reference, ReferenceResult, f"reference setting(s) of {name}")
                 if "score" not in reference:
                     raise ValueError(f"method {name}: reference needs a score")
                 reference = ReferenceResult(**reference)
@@ -159,7 +154,7 @@ class GridConfig:
         for key, table in (tables or {}).items():
             if not isinstance(table, dict) or not isinstance(table.get("methods"), list):
                 raise ValueError(f"table {key} must be a mapping of a title and a list of methods")
-            reject_unknown(table, {f.name for f in fields(TableConfig)}, f"setting(s) of table {key}")
+            reject_unknown(table, TableConfig, f"setting(s) of table {key}")
             parsed_tables[key] = TableConfig(title=table.get("title", str(key)), methods=tuple(table["methods"]))
         values["tables"] = parsed_tables
         if "seeds" in values:

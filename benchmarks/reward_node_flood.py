@@ -76,7 +76,7 @@ def phase(
             under_test.publish(camera, scene_msg)
             next_camera += 1 / CAMERA_HZ
         while bad and now >= next_bad:  # catch up after a slow step: the burst keeps its rate
-            under_test.camera.publish(bad[bad_sent % len(bad)])
+            under_test.cameras[0].publish(bad[bad_sent % len(bad)])
             bad_sent += 1
             next_bad += 1 / BURST_HZ
         rclpy.spin_once(under_test.node, timeout_sec=max(0.0, min(next_camera, next_bad if bad else next_camera) - now))

@@ -23,25 +23,10 @@ import rclpy
 import torch
 from inest_reward_node.runtime.model import DEFAULT_MODEL, load_model
 from inest_reward_node.runtime.rewards import RewardScorer
-from reward_node_harness import RewardNodeUnderTest, image
-
-from inest_sim_node import EnvConfig, SweepToTopEnv
+from reward_node_harness import SIMULATOR_SIZE, RewardNodeUnderTest, image, simulator_frames
 
 SECONDS = 10.0
-SIZE = 96
 BENCHMARK = "reward_node_speed"
-
-
-def simulator_frames(count: int) -> tuple[np.ndarray, np.ndarray]:
-    """`count` moments of random play: the egocentric and the scene camera's frame of each."""
-    env = SweepToTopEnv(config=EnvConfig())
-    env.reset(seed=0)
-    ego, scene = [], []
-    for _ in range(count):
-        env.step(env.action_space.sample())
-        ego.append(env.render_camera("ego", SIZE))
-        scene.append(env.render_camera("allo", SIZE))
-    return np.stack(ego), np.stack(scene)
 
 
 def stream(under_test: RewardNodeUnderTest, frames: tuple[np.ndarray, np.ndarray], rate_hz: float | None) -> dict:
@@ -123,7 +108,7 @@ def main() -> None:
                 "targets": {"rewards_per_s": 100, "latency_p99_ms": 15, "in_node_vs_bare_forward_30hz": 1.3},
                 "model": model,
                 "stage_camera": under_test.stage_camera,
-                "frame": f"{SIZE}x{SIZE} rgb8"
+                "frame": f"{SIMULATOR_SIZE}x{SIMULATOR_SIZE} rgb8"
                 + (f" + {under_test.stage_camera} camera" if under_test.stage_camera else ""),
             }
         )

@@ -5,8 +5,10 @@ reward carrying its stamp before the next, so every frame is scored. Optionally 
 malformed images, and at the end calls `reset_reward` and sends the first frame once more.
 `--scene FILE` publishes a second camera's frames, stamped alike, on `camera/allo/image_raw`
 (the scene camera a stage head reads), `--withhold I` all but frame I's, which is then expected
-to get no reward. Writes what it received as JSON. Used by tests/test_graph.py and
-tests/test_scene_stage.py.
+to get no reward; `--scene-delay S` sends each scene frame S seconds after its frame;
+`--jump-back I` sends, before frame I, one scene frame alone (its frame lost) and then starts
+the clock over: frame I is stamped like frame 0. Writes what it received as JSON. Used by
+tests/test_graph.py and tests/test_scene_stage.py.
 """
 
 from __future__ import annotations
@@ -61,6 +63,8 @@ def main() -> None:
     parser.add_argument("--reset", action="store_true")
     parser.add_argument("--scene", help=".npy of the scene camera's frames, one per frame")
     parser.add_argument("--withhold", type=int, help="the index of a scene frame not to send")
+    parser.add_argument("--scene-delay", type=float, default=0.0, help="seconds between a frame and its scene frame")
+    parser.add_argument("--jump-back", type=int, help="the index of the first frame after the clock starts over")
     args = parser.parse_args()
     frames = np.load(args.frames)
     scene = None if args.scene is None else np.load(args.scene)
@@ -70,7 +74,7 @@ def main() -> None:
     scene_publisher = node.create_publisher(Image, "camera/allo/image_raw", 10)
     rewards: dict[int, Reward] = {}
     rejected, rejected_total, reasons = [0], [0], []
-    unpaired_total = [0]
+    unpaired_total, stage_unpaired_total = [0], [0]
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for status in msg.status:
@@ -78,6 +82,7 @@ def main() -> None:
             rejected[0] += int(values.get("rejected", 0))
             rejected_total[0] = max(rejected_total[0], int(values.get("total_rejected", 0)))
             unpaired_total[0] = max(unpaired_total[0], int(values.get("total_dropped_unpaired", 0)))
+            stage_unpaired_total[0] = max(stage_unpaired_total[0], int(values.get("total_dropped_stage_unpaired", 0)))
             if values.get("last_rejection"):
                 reasons.append(values["last_rejection"])
 
@@ -97,6 +102,7 @@ def main() -> None:
     def send(frame: np.ndarray, stamp: int, scene_frame: np.ndarray | None = None) -> None:
         publisher.publish(image(frame, stamp))
         if scene_frame is not None:
+            time.sleep(args.scene_delay)
             scene_publisher.publish(image(scene_frame, stamp))
         elif scene is not None:
             return  # withheld: no reward is expected, and the next frame must not wait for one
@@ -116,8 +122,15 @@ def main() -> None:
             }
         )
 
+    first = 0  # the index stamped PERIOD_NS: the clock starts over at --jump-back
     for index, frame in enumerate(frames):
-        send(frame, (index + 1) * PERIOD_NS, None if scene is None or index == args.withhold else scene[index])
+        if index == args.jump_back:
+            scene_publisher.publish(image(scene[index], (index + 1) * PERIOD_NS))  # its frame is lost
+            time.sleep(0.1)  # ... and it arrives before the clock goes back
+            first = index
+            rewards.clear()  # the stamps come again: only the new clock's rewards answer them
+        stamp = (index - first + 1) * PERIOD_NS
+        send(frame, stamp, None if scene is None or index == args.withhold else scene[index])
     after_reset = None
     if args.reset:
         spin_until(node, reset.service_is_ready, 30, "the reset_reward service")
@@ -128,6 +141,8 @@ def main() -> None:
     spin_until(node, lambda: rejected[0] >= 3 or not args.malformed, 10, "diagnostics counting the rejections")
     if args.withhold is not None:
         spin_until(node, lambda: unpaired_total[0] >= 1, 10, "diagnostics counting the unpaired frame")
+    if args.jump_back is not None:
+        spin_until(node, lambda: stage_unpaired_total[0] >= 1, 10, "diagnostics counting the lone scene frame")
     with open(args.out, "w") as handle:
         json.dump(
             {
@@ -136,6 +151,7 @@ def main() -> None:
                 "rejected": rejected[0],
                 "rejected_total": rejected_total[0],
                 "unpaired_total": unpaired_total[0],
+                "stage_unpaired_total": stage_unpaired_total[0],
                 "stamps": sorted(rewards),
                 "reasons": reasons,
             },

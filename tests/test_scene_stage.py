@@ -190,3 +190,62 @@ def test_a_lost_scene_frame_is_dropped_as_unpaired_and_holds_nothing_back(graph,
     assert received["stamps"] == [r["stamp"] for r in received["rewards"]]
     assert received["unpaired_total"] == 1
     assert f"no allo camera frame of stamp {3 * PERIOD_NS}" in graph.log("reward")
+
+
+@pytest.mark.parametrize("order", ["ego first", "scene first", "reset first"])
+def test_a_clock_jump_after_a_lone_scene_frame_drops_no_frame_whose_partner_came(tiny_tcc_run, scene_model, order):
+    """The old clock's last scene frame, whose ego frame never came, is of no use once the clock
+    goes back (stamps jump, or `reset_reward` and a restarted simulator): it is dropped with that
+    cause, and every new frame whose scene frame comes is scored (it once cost the next 16)."""
+    config, _ = tiny_tcc_run
+    ego, allo = (demo_frames(config.dataset, view)[0] for view in ("ego", "allo"))
+    streams = StreamScorer(RewardScorer(load_model(scene_model[0]), 3, config=PIXELS))
+    for index in (1, 2, 3):
+        streams.submit(0, (100 + index) * PERIOD_NS, ego[index])
+        streams.submit_stage(0, (100 + index) * PERIOD_NS, allo[index])
+        streams.flush()
+    streams.submit_stage(0, 104 * PERIOD_NS, allo[4])  # its ego frame is lost, then the clock goes back
+    if order == "reset first":
+        streams.reset(0)
+    scored = []
+    for stamp in range(1, 21):
+        index = stamp % len(ego)
+        if order == "scene first":
+            streams.submit_stage(0, stamp * PERIOD_NS, allo[index])
+        scored += streams.submit(0, stamp * PERIOD_NS, ego[index])
+        scored += streams.flush()  # the node's round wait is over before the scene frame comes
+        if order != "scene first":
+            streams.submit_stage(0, stamp * PERIOD_NS, allo[index])
+        scored += streams.flush()
+    assert [frame.stamp for frame in scored] == [stamp * PERIOD_NS for stamp in range(1, 21)]
+    assert [frame.episode_frame for frame in scored] == list(range(1, 21))  # a new episode from the jump on
+    stats = streams.take_stats()
+    assert stats.get("dropped_unpaired", 0) == 0 and stats["dropped_stage_unpaired"] == 1
+    lines = [line for _, line in streams.log.take()]
+    assert any("allo camera's clock jumped back 12.875 s: dropped 1 allo frame" in line for line in lines), lines
+    assert not any("no allo camera frame" in line for line in lines), lines
+
+
+def test_the_reward_node_scores_every_paired_frame_after_a_clock_jump(graph, tiny_tcc_run, scene_model, tmp_path):
+    config, _ = tiny_tcc_run
+    ego, allo = (demo_frames(config.dataset, view)[0] for view in ("ego", "allo"))
+    order = np.arange(24) % len(ego)
+    np.save(tmp_path / "ego.npy", ego[order])
+    np.save(tmp_path / "allo.npy", allo[order])
+    graph.start(
+        "reward",
+        *reward_node_args(scene_model[0], "-p", "image_topic:=camera/image_raw", "-p", "reward.stage_evidence:=pixels"),
+    )
+    camera = subprocess.run(
+        [sys.executable, FOREIGN_CAMERA, tmp_path / "ego.npy", tmp_path / "out.json", "--scene", tmp_path / "allo.npy",
+         "--jump-back", "4", "--scene-delay", "0.02"],
+        env=graph.env, capture_output=True, text=True, timeout=240,
+    )  # fmt: skip
+    assert camera.returncode == 0, camera.stdout + camera.stderr + graph.log("reward")
+    received = json.loads((tmp_path / "out.json").read_text())
+    # every frame got its reward, each before the next was sent: 4 before the jump, 20 after it
+    expected = [(i + 1) * PERIOD_NS for i in range(4)] + [(i + 1) * PERIOD_NS for i in range(20)]
+    assert [r["stamp"] for r in received["rewards"]] == expected
+    assert received["unpaired_total"] == 0 and received["stage_unpaired_total"] == 1
+    log = graph.log("reward")
+    assert "allo camera's clock jumped back" in log and "no allo camera frame" not in log, log

@@ -56,6 +56,25 @@ def test_a_round_is_complete_once_every_stream_has_a_frame_waiting():
     assert not streams.round_complete and streams.stats.batches == 1
 
 
+def test_a_flush_takes_every_streams_frames_round_by_round_up_to_max_batch():
+    """Cameras of several arms share one forward pass; a backlog longer than `max_batch` is
+    scored in several, each stream's frames in order, none twice, and every drop is its stream's."""
+    streams = StreamScorer(scorer(3), max_pending=3, max_batch=4)
+    for index in range(3):
+        for stream in range(3):
+            streams.submit(stream, 100 + index, FRAMES[3 * stream + index])
+    streams.submit(2, 103, FRAMES[11])  # a fourth frame on stream 2: its oldest is dropped
+    first = streams.flush()
+    assert [(r.stream, r.stamp) for r in first] == [(0, 100), (1, 100), (2, 101), (0, 101)]
+    assert streams.ready and streams.stats.batches == 1
+    second = streams.flush()
+    assert [(r.stream, r.stamp) for r in second] == [(0, 102), (1, 101), (2, 102), (1, 102)]
+    assert [(r.stream, r.stamp, r.episode_frame) for r in streams.flush()] == [(2, 103, 3)]
+    assert not streams.ready and streams.num_pending == 0 and streams.stats.batches == 3
+    stats = streams.take_stats()
+    assert stats["dropped_overflow"] == 1 and stats["stream2_unanswered"] == 1 and "stream0_unanswered" not in stats
+
+
 def test_a_stream_alone_scores_frame_by_frame_even_when_its_frames_arrive_together():
     streams = StreamScorer(scorer(1), max_pending=10)
     for index in range(6):
@@ -86,6 +105,7 @@ def test_stale_frames_are_rejected_and_overload_drops_the_oldest():
     assert [r.stamp for r in streams.flush()] == [7, 8]
     first = streams.take_stats()  # a report's counts, and their running totals
     assert (first["rejected"], first["dropped"], first["scored"]) == (1, 1, 3)
+    assert first["stream0_unanswered"] == 2  # the stream's frames that got no reward: stale and overflow
     assert (first["total_rejected"], first["total_dropped_overflow"], first["total_scored"]) == (1, 1, 3)
     streams.submit(0, 9, FRAMES[9])
     streams.flush()

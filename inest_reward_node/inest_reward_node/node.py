@@ -14,9 +14,9 @@ at its stage, the novelty memories are kept if the encoder weights are the same,
 reward says which model scored it (Reward.model_generation; the log and /diagnostics name it).
 A model that cannot be loaded, or reads other cameras, is refused with the reason, and the node
 goes on with the one it has. Every other parameter is read at start-up; changing one later is refused.
-Frames that arrive together are scored in one encoder forward pass. Malformed frames are refused
-from their header fields alone, in constant time, so a flood of them cannot delay valid ones;
-the stamp policy is serving.py's.
+Frames that arrive together, of every stream, are scored in one encoder forward pass (`max_batch`
+at most). Malformed frames are refused from their header fields alone, in constant time, so a
+flood of them cannot delay valid ones; the stamp policy is serving.py's.
 
 Parameters: the RewardNodeConfig fields, `intrinsic.*` (IntrinsicConfig) and `reward.*`
 (runtime.config.RewardConfig: shaping, tracker, stage_source, stage_evidence, hold_steps,
@@ -126,7 +126,7 @@ class RewardNode(Node):
         scorer = self.new_scorer(config.model)
         self.model, self.encoder = config.model, encoder_digest(config.model)
         self.log = ThrottledLog(config.log_period)
-        self.streams = StreamScorer(scorer, config.max_pending, config.backward_stamps, self.log)
+        self.streams = StreamScorer(scorer, config.max_pending, config.backward_stamps, self.log, config.max_batch)
         qos = QoSProfile(depth=10)
         self.reward_pubs, self.total_pubs, self.subtask_pubs = [], [], []
         for index, namespace in enumerate(config.streams):
@@ -289,7 +289,8 @@ class RewardNode(Node):
 
     def spin(self) -> None:
         """Take every callback that is ready, wait up to `round_wait_ms` for a frame from every
-        stream (a lockstep round), then score what arrived in one batch."""
+        stream (a lockstep round), then score what arrived, of every stream, in one batch (more
+        than `max_batch` in as many batches, one after another)."""
         executor = new_executor()
         executor.add_node(self)
         round_wait = self.config.round_wait_ms / 1e3
@@ -304,6 +305,8 @@ class RewardNode(Node):
                     executor.spin_once(timeout_sec=left)
                     self.take_ready(executor)
                 self.publish(self.streams.flush())
+                while self.streams.ready:
+                    self.publish(self.streams.flush())
         finally:
             executor.shutdown()
 

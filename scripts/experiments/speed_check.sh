@@ -58,5 +58,6 @@ done
 measure "$ROOT" "$OUT/learner_speed.json" learner_speed.py
 measure "$ROOT" "$OUT/reward_node_speed.json" reward_node_speed.py "$MODEL"
 measure "$ROOT" "$OUT/reward_node_flood.json" reward_node_flood.py "$MODEL"
+measure "$ROOT" "$OUT/reward_node_cameras.json" reward_node_cameras.py "$MODEL"
 measure "$ROOT" "$OUT/graph_train_speed.json" graph_train_speed.py "$MODEL"
 measure "$ROOT" "$OUT/million_step_speed.json" million_step_speed.py "$(realpath results/long-horizon/reward-model-scene96)"

@@ -22,6 +22,12 @@ Each camera's frames come in stamp order, so its partner is then lost: the frame
 counted as `unpaired` and logged, and never holds back the stream's later frames. Second-camera
 frames older than the frame just paired have no partner either and are dropped, counted as
 `stage_unpaired` (as are the oldest kept ones when too many wait).
+
+Clock jumps. Only the second camera's frames that came since the stream's episode began (a
+backward stamp or a reset) can show a frame's partner lost: one kept from before the clock went
+back (a scene frame whose ego frame was lost) says nothing about the new clock's stamps. When the
+second camera's own stamp goes back, its kept frames are the old clock's: the frames still
+waiting for them get theirs, the rest are dropped (`stage_unpaired`, logged as a clock jump).
 """
 
 from __future__ import annotations
@@ -74,6 +80,7 @@ class Pending:
 class StageFrame:
     frame: np.ndarray  # already fitted to the encoder's input size, like its partner
     received: float  # time.perf_counter() when it arrived
+    arrival: int  # StreamScorer.arrivals when it arrived: whether it came before an episode began
 
 
 @dataclass
@@ -84,6 +91,9 @@ class ServingStats:
     repeated: int = 0
     rejected: Counter[str] = field(default_factory=Counter)  # reason -> frames refused (malformed, stale)
     dropped: Counter[str] = field(default_factory=Counter)  # reason -> valid frames never scored
+    # stream -> its camera's frames that got no reward of their own: dropped or refused as stale
+    # (not the second camera's frames, nor malformed ones, which name no stamp to answer)
+    unanswered: Counter[int] = field(default_factory=Counter)
     zero_stamps: int = 0  # frames stamped 0, scored as new ones
     repeated_stamps: int = 0  # a stamp again with new pixels, scored as a new frame
     stamp_resets: int = 0  # backward stamps that started a new episode
@@ -110,6 +120,7 @@ class ServingStats:
             **{f"rejected_{reason}": count for reason, count in sorted(self.rejected.items())},
             "dropped": self.dropped.total(),
             **{f"dropped_{reason}": count for reason, count in sorted(self.dropped.items())},
+            **{f"stream{stream}_unanswered": count for stream, count in sorted(self.unanswered.items())},
             "zero_stamps": self.zero_stamps,
             "repeated_stamps": self.repeated_stamps,
             "stamp_resets": self.stamp_resets,
@@ -170,7 +181,8 @@ class ThrottledLog:
 
 
 class StreamScorer:
-    """Batches frames from several streams into one scorer, one tracker per stream. The scorer's
+    """Batches frames from several streams into one scorer, one tracker per stream: a flush scores
+    every stream's ready frames in one forward pass of at most `max_batch`. The scorer's
     RewardConfig (the node's `reward.*` parameters) decides shaping and tracker; a tracker may now
     reopen a subtask, so a stream's `subtask` can go down."""
 
@@ -180,6 +192,7 @@ class StreamScorer:
         max_pending: int = 4,
         backward: str = "reset",
         log: ThrottledLog | None = None,
+        max_batch: int = 32,
     ) -> None:
         if scorer.needs_known_stages:
             raise ValueError("a privileged stage (a diagnostic) needs the true stage; served streams carry images only")
@@ -187,6 +200,7 @@ class StreamScorer:
             raise ValueError(f"backward_stamps must be one of {BACKWARD_POLICIES}, got {backward!r}")
         self.scorer = scorer
         self.max_pending = max_pending  # per stream: older waiting frames are dropped (counted)
+        self.max_batch = max_batch  # frames per forward pass: the rest wait for the next flush
         self.backward = backward
         self.log = log or ThrottledLog()
         self.pending: list[deque[Pending]] = [deque() for _ in range(scorer.num_envs)]
@@ -195,6 +209,8 @@ class StreamScorer:
         self.newest: list[tuple[int, np.ndarray] | None] = [None] * scorer.num_envs  # (stamp, frame) accepted last
         # the stage head's second camera: its frames by stamp, waiting for their partners
         self.stage_frames: list[dict[int, StageFrame]] = [{} for _ in range(scorer.num_envs)]
+        self.stage_newest: list[int] = [0] * scorer.num_envs  # the second camera's latest stamp (0: none yet)
+        self.episode_began = [0] * scorer.num_envs  # `arrivals` when each stream's episode began
         self.stats = ServingStats()
         self.totals: Counter[str] = Counter()  # every count since the start, for a reader that missed a report
         self.arrivals = 0  # frames submitted so far, of either camera: what a callback brought
@@ -227,28 +243,59 @@ class StreamScorer:
         self.arrivals += 1
         kept = self.stage_frames[stream]
         arrived = time.perf_counter() if received is None else received
-        kept[stamp] = StageFrame(self.fitted(frame), arrived)
+        frame = self.fitted(frame)
+        if 0 < stamp < self.stage_newest[stream]:
+            self.stage_clock_went_back(stream, stamp)
+        if stamp:
+            self.stage_newest[stream] = stamp
+        kept[stamp] = StageFrame(frame, arrived, self.arrivals)
         while len(kept) > 4 * self.max_pending:
             del kept[next(iter(kept))]
             self.stats.dropped["stage_unpaired"] += 1
 
+    def stage_clock_went_back(self, stream: int, stamp: int) -> None:
+        """The second camera's stamp went back: what it kept is the old clock's, no partner of the
+        new one's frames. Frames of this episode still waiting for theirs take them; the rest go."""
+        kept, began = self.stage_frames[stream], self.episode_began[stream]
+        for item in self.pending[stream]:
+            partner = kept.get(item.stamp)
+            if item.stage_frame is None and partner is not None and partner.arrival > began:
+                self.pair(item, kept.pop(item.stamp))
+        if not kept:
+            return
+        self.stats.dropped["stage_unpaired"] += len(kept)
+        detail = (
+            f"stream {stream}: the {self.stage_camera} camera's clock jumped back "
+            f"{(self.stage_newest[stream] - stamp) / 1e9:.3f} s"
+        )
+        self.log.add(
+            f"stage-backward:{stream}",
+            f"{detail}: dropped {len(kept)} {self.stage_camera} frame(s) of the old clock, no partners of the new one",
+            f"{{count}} {self.stage_camera} clock jumps in the last {{seconds}} s; latest: {detail}",
+        )
+        kept.clear()
+
+    def pair(self, item: Pending, partner: StageFrame) -> None:
+        item.stage_frame = partner.frame
+        if partner.received > item.received:  # the frame waited for it: the pairing's own cost
+            self.stats.pair_waits.append(partner.received - item.received)
+
     def partner(self, stream: int, item: Pending) -> str:
         """Give `item` its stage frame if it needs one and it has come: READY; WAITING while it may
-        still come; LOST once the stage camera has sent a newer stamp."""
+        still come; LOST once the stage camera has sent a newer stamp in this episode (one from
+        before it may be the old clock's, whose stamps the new one repeats)."""
         if self.stage_camera is None or item.stage_frame is not None:
             return READY
-        kept = self.stage_frames[stream]
+        kept, began = self.stage_frames[stream], self.episode_began[stream]
         if item.stamp == 0 and kept:  # zero stamps cannot pair: the newest scene frame
             partner = kept.pop(next(reversed(kept)))
         elif item.stamp in kept:
             partner = kept.pop(item.stamp)
-        elif any(stamp > item.stamp for stamp in kept):
+        elif any(stamp > item.stamp and frame.arrival > began for stamp, frame in kept.items()):
             return LOST
         else:
             return WAITING
-        item.stage_frame = partner.frame
-        if partner.received > item.received:  # the frame waited for it: the pairing's own cost
-            self.stats.pair_waits.append(partner.received - item.received)
+        self.pair(item, partner)
         for orphan in [stamp for stamp in kept if stamp < item.stamp]:  # their partners are past
             del kept[orphan]
             self.stats.dropped["stage_unpaired"] += 1
@@ -258,11 +305,21 @@ class StreamScorer:
     def num_pending(self) -> int:
         return sum(len(queue) for queue in self.pending)
 
+    def has_ready(self, stream: int) -> bool:
+        """The stream's next frame can be taken now: scored, answered from the cache or dropped."""
+        queue = self.pending[stream]
+        return bool(queue) and self.partner(stream, queue[0]) != WAITING
+
     @property
     def round_complete(self) -> bool:
         """Every stream has a frame ready to score (with its stage frame, when the stage head reads
         a second camera): a flush now scores a whole lockstep round at once."""
-        return all(queue and self.partner(stream, queue[0]) != WAITING for stream, queue in enumerate(self.pending))
+        return all(self.has_ready(stream) for stream in range(len(self.pending)))
+
+    @property
+    def ready(self) -> bool:
+        """Some stream has a frame a flush would take: one left over by `max_batch`, say."""
+        return any(self.has_ready(stream) for stream in range(len(self.pending)))
 
     def reject(self, reason: str, detail: str) -> None:
         """Count and log a frame that will get no reward; `reason` is its short name."""
@@ -302,6 +359,7 @@ class StreamScorer:
         elif newest is not None and stamp < newest[0]:
             if self.backward == "reject":
                 self.reject("stale", f"stale frame on stream {stream}: stamp {stamp} is older than {newest[0]}")
+                self.stats.unanswered[stream] += 1
                 return []
             scored = self.flush()  # the old episode's frames belong to it
             self.reset(stream)
@@ -328,37 +386,31 @@ class StreamScorer:
         queue.append(Pending(stamp, frame, arrived, frame_id, republished))
         while len(queue) > self.max_pending:
             queue.popleft()
-            self.stats.dropped["overflow"] += 1
+            self.drop(stream, "overflow")
         return scored
 
+    def drop(self, stream: int, reason: str, count: int = 1) -> None:
+        """Count `count` of the stream's camera frames dropped unscored for `reason`."""
+        self.stats.dropped[reason] += count
+        self.stats.unanswered[stream] += count
+
     def flush(self) -> list[ScoredFrame]:
-        """Score everything pending in one forward pass. Trackers and novelty memories then advance
-        in rounds: round r holds each stream's r-th frame, so frames of different streams count as
-        simultaneous (like N environments stepped together) and a stream's own frames stay in order."""
+        """Score every stream's ready frames in one forward pass, at most `max_batch` (the rest wait:
+        `ready`). Trackers and novelty memories then advance in rounds: round r holds each stream's
+        r-th frame, so frames of different streams count as simultaneous (like N environments
+        stepped together) and a stream's own frames stay in order."""
         results: list[ScoredFrame] = []
-        waiting: list[tuple[int, int, Pending]] = []  # (round, stream, frame)
-        for stream, queue in enumerate(self.pending):
-            position = 0
-            while queue:
-                item = queue[0]
-                last = self.last[stream]
-                if item.republished and last is not None:
-                    queue.popleft()
-                    results.append(replace(last, received=item.received, frame_id=item.frame_id, repeated=True))
-                    self.stats.repeated += 1
-                    continue
-                pairing = self.partner(stream, item)
-                if pairing == WAITING:
-                    break  # it and the stream's later frames wait for its stage frame
-                queue.popleft()
-                if pairing == LOST:
-                    self.drop_unpaired(stream, item.stamp)
-                    continue
-                waiting.append((position, stream, item))
-                position += 1
+        waiting: list[tuple[int, int, Pending]] = []  # (round, stream, frame), round by round
+        streams, position = list(range(len(self.pending))), 0
+        while streams and len(waiting) < self.max_batch:
+            taken = []
+            for stream in streams:
+                if len(waiting) < self.max_batch and (item := self.take(stream, results)) is not None:
+                    waiting.append((position, stream, item))
+                    taken.append(stream)
+            streams, position = taken, position + 1
         if not waiting:
             return results
-        waiting.sort(key=lambda entry: entry[0])  # stable: round by round, streams in order within one
         parts = self.scorer.score(
             np.stack([item.frame for _, _, item in waiting]),
             None if self.stage_camera is None else np.stack([item.stage_frame for _, _, item in waiting]),
@@ -383,8 +435,28 @@ class StreamScorer:
         self.stats.batches += 1
         return results
 
+    def take(self, stream: int, results: list[ScoredFrame]) -> Pending | None:
+        """The stream's next frame to score, answering re-publishes (into `results`) and dropping
+        frames whose partner is lost on the way; None once it has none ready."""
+        queue = self.pending[stream]
+        while queue:
+            item, last = queue[0], self.last[stream]
+            if item.republished and last is not None:
+                queue.popleft()
+                results.append(replace(last, received=item.received, frame_id=item.frame_id, repeated=True))
+                self.stats.repeated += 1
+                continue
+            pairing = self.partner(stream, item)
+            if pairing == WAITING:
+                return None  # it and the stream's later frames wait for its stage frame
+            queue.popleft()
+            if pairing == READY:
+                return item
+            self.drop_unpaired(stream, item.stamp)
+        return None
+
     def drop_unpaired(self, stream: int, stamp: int) -> None:
-        self.stats.dropped["unpaired"] += 1
+        self.drop(stream, "unpaired")
         detail = f"stream {stream}: no {self.stage_camera} camera frame of stamp {stamp} (a newer one came)"
         self.log.add(
             f"unpaired:{stream}",
@@ -397,12 +469,13 @@ class StreamScorer:
         simulator's clock starts over); the exploration memories are kept. Flush first: what is
         still pending then waits for a stage frame that did not come, and is dropped (counted)."""
         if self.pending[stream]:
-            self.stats.dropped["unpaired"] += len(self.pending[stream])
+            self.drop(stream, "unpaired", len(self.pending[stream]))
             self.pending[stream].clear()
         self.scorer.reset(stream)
         self.last[stream] = None
         self.episode_frames[stream] = 0
         self.newest[stream] = None
+        self.episode_began[stream] = self.arrivals
 
     def take_stats(self) -> dict[str, float | int | str]:
         """The counts and latencies since the last call, and every count's running total (`total_*`)."""

@@ -62,10 +62,10 @@ def test_a_policy_s_rollouts_become_clips_the_stage_classifier_is_refitted_on(ti
 def test_bad_clip_input_gets_one_line_and_saves_nothing(tiny_tcc_run, tmp_path, capsys):
     pretrain_config, reward_run = tiny_tcc_run
     assert record_clips.main([str(tmp_path / "nowhere"), "--out", str(tmp_path / "c.npz")]) == 2
-    assert "does not exist" in capsys.readouterr().err
+    assert "holds no checkpoint" in capsys.readouterr().err
     oracle = tmp_path / "oracle"  # a run whose evaluations render no camera
     (oracle / "checkpoint").mkdir(parents=True)
-    (oracle / "checkpoint" / "model.zip").write_bytes(b"")
+    (oracle / "checkpoint" / "checkpoint.json").write_text('{"steps": 0}')
     (oracle / "config.json").write_text(json.dumps(TrainConfig.from_dict({"reward": "env"}).to_dict()))
     assert record_clips.main([str(oracle), "--out", str(tmp_path / "c.npz")]) == 2
     assert "score no camera frames" in capsys.readouterr().err and not (tmp_path / "c.npz").exists()

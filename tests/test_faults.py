@@ -4,15 +4,19 @@ checkpoint the agent and stop every process cleanly; a restarted simulator is re
 
 from __future__ import annotations
 
+import base64
 import dataclasses
 import importlib.util
 import json
 import os
+import pickle
 import re
+import shutil
 import signal
 import subprocess
 import sys
 import time
+import zipfile
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -20,16 +24,23 @@ import ament_index_python.packages
 import pytest
 import rclpy
 import yaml
-from inest_agent_node.train import Trainer
+from inest_agent_node.checkpoint import read_manifest
+from inest_agent_node.envs import build_env
+from inest_agent_node.learners import learner_class
+from inest_agent_node.train import Trainer, new_learner, restore_learner
 from inest_bringup.launcher import graph_environment, resuming_agent
 from inest_bringup.monitor import GraphMonitor
 from inest_bringup.supervisor import TRAINING_NICENESS, Outcome, RespawnPolicy, Supervisor, training_cpus
-from inest_interfaces.msg import Reward
+from inest_common.files import NO_SPACE_EXIT, RunFileError
+from inest_interfaces.msg import EpisodeStatus, Reward
 from inest_reward_node.runtime.serving import StreamScorer
+from rclpy.duration import Duration
 from rosgraph import BIN, fresh_domain
 from test_agent import tiny_config
 from test_graph import MID_EPISODE, TINY_AGENT, count_steps, reward_node_args, sim_node_args
 from test_serving import FRAMES, scorer
+
+from inest_agent_node.config import TrainConfig
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -64,6 +75,7 @@ def test_bad_parameters_are_one_line_and_exit_2_on_every_node(tmp_path):
         (["inest-reward-node", "-p", "intrinsic.k:=1.5"], ["parameter intrinsic.k must be an integer, got 1.5"]),
         (["inest-reward-node", "-p", "max_pending:=[1"], ["-p 'max_pending:=[1': the value is not valid YAML"]),
         (["inest-reward-node", "-p", "max pending:=1"], ["-p 'max pending:=1' is not NAME:=VALUE"]),
+        (["inest-reward-node", "-p", "streams:=[]"], ["-p 'streams:=[]': ROS cannot pass an empty list"]),
         (["inest-agent-node", "-p", "subtasks:=three"], ["parameter subtasks must be an integer, got 'three'"]),
         (["inest-agent-node", "-p", "subtasks:=4"], ["unknown subtasks 4; expected one of (1, 3, 6)"]),
         (["inest-agent-node", "-p", "sac.batch_size:=0"], ["sac.batch_size must be positive, got 0"]),
@@ -79,7 +91,18 @@ def test_bad_parameters_are_one_line_and_exit_2_on_every_node(tmp_path):
         assert_refused(process, *expected)
 
 
-def test_bad_launcher_settings_are_one_line_and_exit_2(tmp_path):
+def assert_launch_refused(process: subprocess.Popen, out: Path, *expected: str) -> None:
+    """inest-launch's refusal: exit code 2 and its one line saying `expected`, nothing else (no node
+    started, none was to be stopped), and nothing written to its run folder `out`."""
+    stdout, stderr = process.communicate(timeout=120)
+    assert process.returncode == 2 and not stdout and stderr.count("\n") == 1, stdout + stderr
+    assert stderr.startswith("inest-launch: ") and "started " not in stderr, stderr
+    for part in expected:
+        assert part in stderr, stderr
+    assert not (out / "logs").exists()
+
+
+def test_bad_launcher_settings_and_usage_mistakes_are_one_line_and_exit_2(tmp_path):
     cases = [
         (["--env-cpus", "999"], ["--env-cpus: CPU list '999' names CPUs this process may not run on"]),
         (["--env-cpus", "0-1000000000"], ["--env-cpus: CPU list '0-1000000000' names CPUs this process may not"]),
@@ -87,10 +110,44 @@ def test_bad_launcher_settings_are_one_line_and_exit_2(tmp_path):
         (["--env-cpus", "1-"], ["--env-cpus: '1-' is not a CPU list such as 1 or 0,2-3"]),
         (["--nice", "20"], ["--nice must be an integer between 0 and 19, got 20"]),
         (["--nice", "-1"], ["--nice must be an integer between 0 and 19, got -1"]),
+        (["--sims", "0"], ["--sims must be at least 1"]),
+        (["--respawn", "-1"], ["--respawn and --respawn-delay must be >= 0"]),
+        (["--params", str(tmp_path / "nowhere.yaml")], [f"no params file at {tmp_path / 'nowhere.yaml'}"]),
+        # argparse's own: an unknown flag, a missing value, a bad type, a bad choice
+        (["--simulators", "2"], ["unrecognized arguments: --simulators 2"]),
+        (["--steps"], ["argument --steps: expected one argument"]),
+        (["--sims", "two"], ["argument --sims: invalid int value: 'two'"]),
+        (["--discovery", "lan"], ["argument --discovery: invalid choice: 'lan'"]),
     ]
-    started = [(start(tmp_path, "inest-launch", "--out", str(tmp_path), *args), expected) for args, expected in cases]
+    out = tmp_path / "graph"
+    started = [(start(tmp_path, "inest-launch", "--out", str(out), *args), expected) for args, expected in cases]
     for process, expected in started:
-        assert_refused(process, *expected)
+        assert_launch_refused(process, out, *expected)
+    assert not out.exists()
+
+
+def test_the_launcher_refuses_what_its_agent_or_reward_node_would_before_starting_any_node(saved_run, tmp_path):
+    """The refusals a node used to make once the graph was up (a policy that is not there, a run
+    folder already in use or resumed with other settings, the agent's evaluation model) or never
+    made (an empty list, which rcl drops: the launcher's own streams stayed and the run trained)
+    come from the launcher's check."""
+    held = tmp_path / "held"  # a run folder whose agent/ holds a run
+    shutil.copytree(saved_run / "run", held / "agent")
+    policy, model, streams = tmp_path / "policy", tmp_path / "model", tmp_path / "streams"
+    evaluate = ["--param", "agent:mode:=evaluate", "--param", "agent:policy:=/nonexistent"]
+    cases = [  # (run folder, arguments, what the line says)
+        (policy, evaluate, "agent refused its configuration: inest-agent-node: no exported policy at /nonexistent"),
+        (held, [], f"agent refused its configuration: inest-agent-node: {held / 'agent'} already holds a run; pass"),
+        (held, ["--resume"], f"inest-agent-node: cannot resume {held / 'agent'}: settings differ from the saved run"),
+        (model, ["--param", "agent:model:=/nowhere"], "inest-agent-node: no reward model at /nowhere"),
+        (streams, ["--param", "reward:streams:=[]"], "-p 'streams:=[]': ROS cannot pass an empty list"),
+    ]
+    before = sorted(path.relative_to(held) for path in held.rglob("*"))
+    started = [(start(tmp_path, "inest-launch", "--out", str(out), *args), out, line) for out, args, line in cases]
+    for process, out, line in started:
+        assert_launch_refused(process, out, line, "; nothing was started")
+    assert not policy.exists() and not model.exists() and not streams.exists()
+    assert sorted(path.relative_to(held) for path in held.rglob("*")) == before  # the run is left as it was
 
 
 @pytest.fixture(scope="module")
@@ -113,14 +170,15 @@ def damaged_copy(saved_run: Path, tmp_path: Path, name: str, damage) -> Path:
 
 
 def test_corrupt_run_files_and_an_empty_resume_are_one_line_and_exit_2(saved_run, tmp_path):
-    def truncate(data: bytes) -> bytes:
-        return data[: len(data) // 2]
+    def garble(data: bytes) -> bytes:  # the size its manifest says, the content unreadable
+        return b"\x07" * len(data)
 
     runs = {
-        "replay_buffer.npz": damaged_copy(saved_run, tmp_path, "replay_buffer.npz", truncate),
-        "history.json": damaged_copy(saved_run, tmp_path, "history.json", lambda data: b"[[200, 0.1"),
-        "model.zip": damaged_copy(saved_run, tmp_path, "model.zip", truncate),
+        "replay_buffer.npz": damaged_copy(saved_run, tmp_path, "replay_buffer.npz", garble),
+        "history.json": damaged_copy(saved_run, tmp_path, "history.json", garble),
+        "learner.safetensors": damaged_copy(saved_run, tmp_path, "learner.safetensors", garble),
     }
+    truncated = damaged_copy(saved_run, tmp_path, "diagnostics.json", lambda data: data[: len(data) // 2])
     before = {name: (run / "checkpoint" / name).read_bytes() for name, run in runs.items()}
     config = str(saved_run / "train.yaml")
     trains = {
@@ -132,15 +190,99 @@ def test_corrupt_run_files_and_an_empty_resume_are_one_line_and_exit_2(saved_run
     agent = start(
         tmp_path, "inest-agent-node", "--ros-args", "-p", "resume:=true", "-p", f"out:={tmp_path / 'no-agent-run'}"
     )
+    partial = start(tmp_path, "inest-train", "--out", str(truncated), "--config", config, "--resume")
     for name, process in trains.items():
         assert_refused(process, "inest-train: cannot read", str(runs[name] / "checkpoint" / name))
         assert (runs[name] / "checkpoint" / name).read_bytes() == before[name]  # nothing saved is lost
+    assert_refused(partial, f"checkpoint {truncated / 'checkpoint'} is not whole: diagnostics.json is")
     assert_refused(empty, f"nothing to resume in {tmp_path / 'never-ran'}")
     assert_refused(bare, f"nothing to resume in {tmp_path / 'never-ran'}")  # not "the reward needs a model"
     pretrain = start(tmp_path, "inest-pretrain", str(tmp_path / "no-dataset"), "--out", str(tmp_path / "no-model"))
     assert_refused(pretrain, f"inest-pretrain: no dataset at {tmp_path / 'no-dataset'}")
     assert not (tmp_path / "no-model").exists()  # nothing written before the refusal: a rerun is not blocked
     assert_refused(agent, "inest-agent-node: nothing to resume in", "no-agent-run")
+
+
+class CreatesMarker:
+    """Unpickled, it creates the file `path`: the payload a foreign model.zip can carry."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = str(path)
+
+    def __reduce__(self):
+        return open, (self.path, "w")
+
+
+def test_a_pickled_model_zip_in_a_run_folder_is_refused_and_none_of_its_code_runs(saved_run, tmp_path):
+    run, marker = tmp_path / "foreign", tmp_path / "payload-ran"
+    subprocess.run(["cp", "-r", saved_run / "run", run], check=True)
+    checkpoint = run / "checkpoint"
+    for name in ("learner.json", "learner.safetensors"):  # laid out as INEST wrote checkpoints before
+        (checkpoint / name).unlink()
+    manifest = json.loads((checkpoint / "checkpoint.json").read_text())
+    (checkpoint / "checkpoint.json").write_text(json.dumps({key: manifest[key] for key in ("steps", "training_s")}))
+    entry = {":type:": "<class 'type'>", ":serialized:": base64.b64encode(pickle.dumps(CreatesMarker(marker))).decode()}
+    with zipfile.ZipFile(checkpoint / "model.zip", "w") as archive:
+        archive.writestr("data", json.dumps({"policy_class": entry}))
+    loads = "import sys\nfrom stable_baselines3 import SAC\ntry: SAC.load(sys.argv[1])\nexcept Exception: pass"
+    subprocess.run([sys.executable, "-c", loads, checkpoint / "model.zip"], check=True, timeout=120)
+    assert marker.exists()  # the payload is live: stable-baselines3's load runs it
+    marker.unlink()
+    resume = start(tmp_path, "inest-train", "--out", str(run), "--config", str(saved_run / "train.yaml"), "--resume")
+    assert_refused(
+        resume, f"{checkpoint / 'model.zip'} is a stable-baselines3 model.zip with pickled entries (policy_class)"
+    )
+    config = TrainConfig.from_dict(json.loads((run / "config.json").read_text()))
+    with pytest.raises(RunFileError, match="pickled entries"):  # what inest-record-clips loads a policy with
+        restore_learner(new_learner(learner_class(config.learner), config, build_env(config, 1)), config.learner, run)
+    assert not marker.exists()
+
+
+def unshare_tmpfs() -> list[str] | None:
+    """The command prefix that runs a shell in its own mount namespace (util-linux unshare), where
+    it may mount a small tmpfs without privileges; None where the kernel or sandbox forbids it."""
+    prefix = ["unshare", "--user", "--map-root-user", "--mount"]
+    try:
+        probe = subprocess.run([*prefix, "mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", "/mnt"], timeout=30)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return prefix if probe.returncode == 0 else None
+
+
+def test_a_full_disk_keeps_the_last_checkpoint_whole_says_one_line_and_the_run_resumes(saved_run, tmp_path):
+    prefix = unshare_tmpfs()
+    if prefix is None:
+        pytest.skip("no unprivileged mount namespace here to fill a small disk in")
+    config = yaml.safe_load((saved_run / "train.yaml").read_text())
+    (tmp_path / "slow.yaml").write_text(yaml.safe_dump({**config, "total_steps": 100_000, "checkpoint_minutes": 0.01}))
+    disk, kept = tmp_path / "disk", tmp_path / "kept"
+    disk.mkdir()
+    train = f"{BIN / 'inest-train'} --out {disk}/run --config {tmp_path / 'slow.yaml'}"
+    script = f"""
+mount -t tmpfs -o size=16m tmpfs {disk}
+{train} 2> {tmp_path}/stderr &
+until [ -f {disk}/run/checkpoint/checkpoint.json ]; do sleep 0.1; done
+dd if=/dev/zero of={disk}/filler bs=64k 2> /dev/null  # the disk fills between two checkpoints
+wait $!
+echo $? > {tmp_path}/status
+cp -r {disk}/run {kept}
+"""
+    subprocess.run(
+        [*prefix, "bash", "-c", script], env=graph_environment(fresh_domain(), tmp_path / "ros"), timeout=240
+    )
+    stderr = (tmp_path / "stderr").read_text()
+    assert (tmp_path / "status").read_text().strip() == str(NO_SPACE_EXIT), stderr
+    assert "Traceback" not in stderr, stderr
+    line = stderr.strip().splitlines()[-1]
+    steps = read_manifest(kept / "checkpoint")["steps"]  # the last good checkpoint, whole
+    assert "inest-train: no space left on the device for the checkpoint at step" in line, stderr
+    assert f"the checkpoint at step {steps} is kept" in line and 0 < steps < 100_000
+    assert not (kept / ".checkpoint.partial").exists()
+    resumed = start(tmp_path, "inest-train", "--out", str(kept), "--config", str(tmp_path / "slow.yaml"), "--resume",
+                    "--total-steps", str(steps + 8))  # fmt: skip
+    assert resumed.communicate(timeout=120)[0] and resumed.returncode == 0
+    results = json.loads((kept / "results.json").read_text())
+    assert results["steps"] == steps + 8
 
 
 def test_a_killed_run_resumes_from_a_timed_checkpoint_and_one_without_a_checkpoint_is_refused(saved_run, tmp_path):
@@ -208,6 +350,9 @@ def test_the_supervisor_restarts_with_back_off_and_stops_a_node_that_keeps_dying
     refusing = supervise("reward", 2, RespawnPolicy(delay=0.05))
     assert refusing.outcome == Outcome(2, "reward refused its configuration: run of reward")  # never restarted
     assert supervise("agent", 0, RespawnPolicy()).outcome == Outcome(0, "")  # the run is over
+    full = supervise("agent", NO_SPACE_EXIT, RespawnPolicy(delay=0.05))  # a restart would fill the disk again
+    assert full.outcome == Outcome(NO_SPACE_EXIT, "agent ran out of disk space: run of agent")
+    assert (tmp_path / "agent.log").read_text().count("run of agent") == 2  # the two launches, no restart
 
 
 def test_the_ros_launch_file_respawns_simulators_and_reward_node_as_inest_launch_does(monkeypatch):
@@ -349,7 +494,7 @@ def test_the_launcher_respawns_a_killed_simulator_and_ctrl_c_checkpoints_the_age
     logs = tmp_path / "graph" / "logs"
     assert "sim0: the simulator restarted; resetting it" in (logs / "agent.log").read_text()
     assert "checkpoint saved" in (logs / "agent.log").read_text()
-    assert (tmp_path / "graph" / "agent" / "checkpoint" / "model.zip").exists()
+    assert (tmp_path / "graph" / "agent" / "checkpoint" / "learner.json").exists()
     for log in [tmp_path / "launcher.log", *logs.glob("*.log")]:
         assert "Traceback" not in log.read_text(), log
 
@@ -388,6 +533,42 @@ def test_the_subtask_reaches_num_subtasks_in_the_reward_and_the_monitor_shows_do
         monitor.destroy_node()
     finally:
         rclpy.shutdown()
+
+
+def test_the_monitor_says_how_sure_the_reward_has_been_of_done_not_one_frames_doubt(tmp_path):
+    """Rewards as the default model's reward node sent them for the trained policy: the stage head
+    doubted, for a frame, the block the tracker had seen placed. inest-monitor used to show that
+    one frame's confidence beside "done" (`done (sure 0.01)`); it shows the mean since done."""
+    domain = fresh_domain()
+    monitor = subprocess.Popen(
+        [BIN / "inest-monitor", "--namespaces", "sim0", "--interval", "0.2", "--duration", "60"],
+        env=graph_environment(domain, tmp_path / "ros"), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+    rclpy.init(domain_id=domain)
+    try:
+        node = rclpy.create_node("reward_node_stand_in")
+        rewards = node.create_publisher(Reward, "sim0/reward", 100)
+        status = node.create_publisher(EpisodeStatus, "sim0/episode_status", 100)
+        deadline = time.monotonic() + 60
+        while not (rewards.get_subscription_count() and status.get_subscription_count()):
+            assert time.monotonic() < deadline and monitor.poll() is None, "inest-monitor never subscribed"
+            rclpy.spin_once(node, timeout_sec=0.05)
+        for frame, (subtask, confidence) in enumerate([(2, 0.9), (3, 0.99), (3, 0.98), (3, 0.01)], start=38):
+            rewards.publish(
+                Reward(total=6.0, subtask=subtask, num_subtasks=3, stage_confidence=confidence, episode_frame=frame)
+            )
+        assert rewards.wait_for_all_acked(Duration(seconds=30))
+        time.sleep(1.0)  # taken in before the step below makes the monitor print its line
+        status.publish(EpisodeStatus(step=41))
+        assert status.wait_for_all_acked(Duration(seconds=30))
+    finally:
+        rclpy.shutdown()
+    line = ""
+    while "done" not in line and (line := monitor.stdout.readline()):
+        pass
+    monitor.send_signal(signal.SIGINT)
+    monitor.communicate(timeout=30)
+    assert "sim0: r +6.000 subtask 3/3 done (sure 0.66)" in line, line  # (0.99 + 0.98 + 0.01) / 3
 
 
 def test_inest_train_refuses_a_missing_model_before_writing_anything(tmp_path):

@@ -104,7 +104,7 @@ def test_lockstep_training_over_the_graph_with_two_simulators(graph, tiny_model,
     results = json.loads((tmp_path / "run" / "results.json").read_text())
     assert results["steps"] == 300 and results["config"]["num_envs"] == 2
     assert results["config"]["reward"] == "topic" and results["config"]["observation"] == "robot"
-    assert (tmp_path / "run" / "checkpoint" / "model.zip").exists()
+    assert (tmp_path / "run" / "checkpoint" / "learner.json").exists()
     # evaluate mode: the exported policy over the same graph, on the test layouts
     evaluation = graph.start(
         "evaluate", "inest-agent-node", "--ros-args", "-p", "namespaces:=[sim0, sim1]", "-p", "mode:=evaluate",
@@ -358,3 +358,18 @@ def test_a_malformed_burst_leaves_no_valid_frame_unanswered_or_uncounted(tiny_mo
         assert phase["uncounted"] == 0 and phase["malformed_rejected"] == phase["malformed_sent"], (name, phase)
     assert report["flood_96"]["malformed_sent"] >= 1000  # six kinds of malformed frames, each rejected
     assert report["node_log_lines_about_rejections"] <= 30  # each reason once, then counted per 5 s
+
+
+def test_one_reward_node_answers_every_frame_of_several_free_running_cameras(tiny_model):
+    """benchmarks/reward_node_cameras.py, short: two 30 Hz streams out of step, one node."""
+    cameras = subprocess.run(
+        [sys.executable, Path(__file__).parent.parent / "benchmarks" / "reward_node_cameras.py", tiny_model,
+         "--streams", "2", "--seconds", "2"],
+        capture_output=True, text=True, timeout=240,
+    )  # fmt: skip
+    assert cameras.returncode == 0, cameras.stdout + cameras.stderr
+    report = json.loads(cameras.stdout)["streams"]["2"]
+    assert [stream["stream"] for stream in report["per_stream"]] == ["cam0", "cam1"]
+    for stream in report["per_stream"]:
+        assert stream["valid_sent"] == 60 and stream["answered"] + stream["counted_drops"] == 60, stream
+    assert report["uncounted"] == 0 and report["mean_batch"] >= 1 and report["node_cpu_percent"] > 0, report

@@ -64,6 +64,8 @@ ROSDEP_KEYS = {
     "sb3_contrib": "python3-sb3-contrib-pip",
     "sbx": "python3-sbx-rl-pip",
     "jax": "python3-jax-pip",
+    "flax": "python3-flax-pip",
+    "msgpack": "python3-msgpack-pip",
     "mcap": "python3-mcap-pip",
     "mcap_ros2": "python3-mcap-ros2-support-pip",
     "ray": "python3-ray-pip",

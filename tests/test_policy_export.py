@@ -10,7 +10,7 @@ import pytest
 from inest_agent_node.evaluate import LAYOUT_SETS, layouts
 from inest_agent_node.learners import learner_class
 from inest_agent_node.policy_export import export_policy, load_policy
-from inest_agent_node.train import Trainer
+from inest_agent_node.train import Trainer, new_learner, restore_learner
 from small_training import small_train_config
 
 from inest_experiments import reevaluate
@@ -41,7 +41,8 @@ def test_an_exported_actor_acts_as_the_learner_s_deterministic_policy(learner, t
     np.testing.assert_allclose(policy.predict(observations), expected, atol=1e-5)
     assert policy.info["observation"] == "robot" and "ordered_progress" not in policy.info["observation_fields"]
     assert policy.config == config and policy.info["steps"] == 200
-    loaded = learner_class(learner).load(tmp_path / "run" / "checkpoint" / "model.zip")
+    loaded = new_learner(learner_class(learner), config, trainer.env)
+    restore_learner(loaded, learner, tmp_path / "run")
     export_policy(loaded, config, tmp_path / "again")  # a saved model exports the same actor
     np.testing.assert_allclose(load_policy(tmp_path / "again").predict(observations), expected, atol=1e-5)
     with pytest.raises(ValueError, match="observes 24 values"):

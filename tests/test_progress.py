@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import io
+import re
+import subprocess
+import sys
+import time
 
 from inest_common.progress import track
 
@@ -29,3 +33,35 @@ def test_a_log_gets_whole_lines_and_a_terminal_gets_the_bar():
     for _ in track(range(10), desc="bar", file=terminal, mininterval=0):
         pass
     assert "\r" in terminal.getvalue()
+
+
+# a loop that runs fast for a second (an agent's random steps before its updates begin), then at
+# 100 steps/s; it says on stdout where the slow part began
+SLOWING_LOOP = """
+import time
+from inest_common import progress
+progress.LINE_INTERVAL = 0.2  # seconds between log lines (30 in use)
+bar = progress.track(total=10**9, desc="steps")
+start = time.monotonic()
+while time.monotonic() < start + 1.0:
+    bar.update(1)
+print(bar.n, flush=True)
+while True:
+    time.sleep(0.01)
+    bar.update(1)
+"""
+
+
+def test_a_killed_process_log_shows_how_far_it_got_after_it_slowed_down(tmp_path):
+    """tqdm's default spaced a log's lines by the count of the first interval: once the loop slowed
+    down, no line came for minutes, and a killed agent's log ended at its fast start."""
+    log = tmp_path / "loop.log"
+    with open(log, "w") as stderr:
+        loop = [sys.executable, "-c", SLOWING_LOOP]
+        process = subprocess.Popen(loop, stdout=subprocess.PIPE, stderr=stderr, text=True)
+    slowed_at = int(process.stdout.readline())
+    time.sleep(2.0)  # some 200 slow steps, ten line intervals
+    process.kill()
+    process.communicate()
+    counts = [int(count) for count in re.findall(r"\| (\d+)/1000000000 \[", log.read_text())]
+    assert counts and counts[-1] >= slowed_at + 20, log.read_text()  # a line came while it was slow

@@ -194,6 +194,11 @@ class TrainConfig:
             return NUM_BLOCKS
         return reward_scheme(self.reward, self.subtasks)
 
+    def settings_that_matter(self, start_over: bool = False) -> set[str]:
+        """Settings that change what is trained, which a resumed run must keep: all but the speed-only
+        ones and `total_steps` (it may train further); none for a run trained again from step 0."""
+        return set() if start_over else set(self.to_dict()) - SPEED_ONLY_SETTINGS - {"total_steps"}
+
     def to_dict(self) -> dict[str, Any]:
         data = asdict(self)
         data["sac"]["net_arch"] = list(self.sac.net_arch)

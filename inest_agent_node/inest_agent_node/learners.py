@@ -10,8 +10,7 @@ therefore mixins that go on top of whichever class `LEARNERS` names (`build_lear
 - OverlappedUpdatesMixin overrides `OffPolicyAlgorithm.train(gradient_steps, batch_size)` (it
   defers the update to `run_pending_updates`, which calls the learner's own `train`);
 - RewardBatchingMixin overrides `OffPolicyAlgorithm._store_transition(...)` (holds a transition
-  until its learned reward is scored) and `BaseAlgorithm._excluded_save_params()` (the held
-  transitions are not saved);
+  until its learned reward is scored);
 - BrokenStepsMixin overrides `OffPolicyAlgorithm._store_transition(...)` too (stores nothing for
   a vector step on which an environment's step never happened).
 
@@ -28,7 +27,6 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import inspect
-import itertools
 import os
 import sys
 import warnings
@@ -146,8 +144,8 @@ class OverlappedUpdatesMixin:
     while the simulators and the reward node work in their own processes; it still samples from
     exactly the transitions up to t. The vector env calls `run_pending_updates` once its actions
     are out (GraphVecEnv.while_waiting); call it once more after `learn()` returns (the last
-    update had no next step to overlap with). `pending_updates` is saved with the model, so a
-    checkpoint taken between the two keeps the deferred update.
+    update had no next step to overlap with). `pending_updates` is saved with the learner's state
+    (learner_state.py), so a checkpoint taken between the two keeps the deferred update.
     """
 
     pending_updates: list[tuple[int, int]]
@@ -171,11 +169,10 @@ class RewardBatchingMixin:
     A transition waits until its learned reward is known (at most batch_steps - 1 vector steps),
     then goes into the replay buffer exactly as the learner would have stored it; the updates
     meanwhile sample from the transitions already stored. Overrides stable-baselines3's
-    `OffPolicyAlgorithm._store_transition` (handing it a TransitionHolder for the replay buffer)
-    and `BaseAlgorithm._excluded_save_params` (the held transitions are not saved: a checkpoint
-    calls `settle_rewards` first). stable-baselines3 hands `_store_transition` fresh arrays
-    every step, so holding them is safe. The env must offer `take_rewards(at_most)` and
-    `score_waiting()` (envs.RewardVecEnv).
+    `OffPolicyAlgorithm._store_transition` (handing it a TransitionHolder for the replay buffer);
+    a checkpoint calls `settle_rewards` first, so no transition is held in it. stable-baselines3
+    hands `_store_transition` fresh arrays every step, so holding them is safe. The env must offer
+    `take_rewards(at_most)` and `score_waiting()` (envs.RewardVecEnv).
     """
 
     held_transitions: deque[tuple[Any, ...]]
@@ -185,9 +182,6 @@ class RewardBatchingMixin:
         self.held_transitions = deque()
         if self.env is not None:
             self.env.accept_deferred_rewards()  # this learner never trains on a reward still NaN
-
-    def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "held_transitions"]
 
     def _store_transition(self, replay_buffer, buffer_action, new_obs, reward, dones, infos) -> None:
         holder = TransitionHolder(self.held_transitions)
@@ -243,9 +237,8 @@ def build_learner_class(
 ) -> type:
     """The learner `name` with the chosen mixins, e.g. ("sbx_sac", overlap_updates=True) -> OverlappedSbxSAC.
 
-    One class per combination (cached), so `.load()` of a saved model goes through the same class
-    that saved it; with neither mixin it is the plain class of LEARNERS. The class is also an
-    attribute of this module under its name (module __getattr__), so pickling a model finds it.
+    One class per combination (cached), so two trainers of one configuration build the same
+    class; with neither mixin it is the plain class of LEARNERS.
     """
     return _build_learner_class(name, bool(overlap_updates), bool(reward_batching), bool(drops_broken_steps))
 
@@ -263,22 +256,6 @@ def _build_learner_class(name: str, overlap_updates: bool, reward_batching: bool
     class_name = _variant_name(name, overlap_updates, reward_batching, drops_broken_steps)
     doc = f"{base.__name__} ({name}) with " + " and ".join(mixin.__name__ for mixin in mixins) + "."
     return type(class_name, (*mixins, base), {"__module__": __name__, "__qualname__": class_name, "__doc__": doc})
-
-
-def __getattr__(attribute: str) -> type:
-    """Variant classes by name (`learners.OverlappedSbxSAC`), built on first access."""
-    for name in _LEARNER_PATHS:
-        for flags in itertools.product((False, True), repeat=3):
-            if any(flags) and _variant_name(name, *flags) == attribute:
-                return build_learner_class(name, *flags)
-    if attribute == "SbxDroQ":
-        return _sbx_droq()
-    raise AttributeError(f"module {__name__!r} has no attribute {attribute!r}")
-
-
-# the stable-baselines3 SAC variants under the names train.py has always used
-OverlappedSAC: type = build_learner_class("sac", overlap_updates=True)
-RewardBatchingSAC: type = build_learner_class("sac", reward_batching=True)
 
 
 def learner_kwargs(name: str, sac: DataclassInstance, critic_net_arch: Sequence[int] | None = None) -> dict[str, Any]:

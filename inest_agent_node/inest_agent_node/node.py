@@ -24,15 +24,17 @@ from pathlib import Path
 
 from inest_common.files import write_atomic
 from inest_common.rosutil import declare_dataclass, run_node
+from inest_reward_node.learning.runs import check_run_dir
 from inest_reward_node.runtime.intrinsic import IntrinsicConfig
 from inest_reward_node.runtime.model import ModelError
 from rclpy.node import Node
 
-from .config import TrainConfig
+from .config import TrainConfig, setting_defaults
 from .envs import with_observation
 from .evaluate import evaluate_vec_env, format_table, layouts
 from .graph_env import GraphVecEnv
-from .policy_export import load_policy
+from .policy_export import ExportedPolicy, load_policy
+from .rewards import build_reward
 from .train import CHECKPOINT_DIR, EVALUATION_FILE, RESULTS_FILE, Trainer, check_resume
 
 MODES = ("train", "evaluate")
@@ -86,8 +88,23 @@ class AgentNode(Node):
                 f"reward {self.train_config.reward!r} is scored in process by inest-train; over the graph the "
                 "reward is the reward node's (topic) or the simulators' own (env)"
             )
-        if self.settings.mode == "train":
-            check_resume(Path(self.settings.out), self.settings.resume, self.settings.start_over)
+        self.policy: ExportedPolicy | None = None  # evaluate mode's, loaded by `check`
+
+    def check(self) -> None:
+        """Every refusal before the node joins the graph (run_node's check, which inest-launch's
+        runs before it starts any node): evaluate mode's policy, or what Trainer refuses, checked
+        without writing anything: the run folder (nothing to resume, a run there already, a resume
+        with other settings) and the model of the in-process evaluations' reward."""
+        settings, config = self.settings, self.train_config
+        if settings.mode == "evaluate":
+            self.policy = load_policy(settings.policy or settings.out)
+            return
+        out = Path(settings.out)
+        check_resume(out, settings.resume, settings.start_over)
+        continued = settings.resume or settings.start_over
+        kept = config.settings_that_matter(settings.start_over)
+        check_run_dir(out, config.to_dict(), continued, kept, setting_defaults())
+        build_reward(config, 1, evaluation=True)
 
     def run(self) -> None:
         settings, config = self.settings, self.train_config
@@ -120,9 +137,8 @@ class AgentNode(Node):
 
     def evaluate(self, graph: GraphVecEnv) -> None:
         """An exported policy over the graph, observing what it was trained to observe."""
-        settings = self.settings
+        settings, policy = self.settings, self.policy
         source = settings.policy or settings.out
-        policy = load_policy(source)
         env = with_observation(graph, policy.info["observation"], policy.info["stage_subtasks"])
         on = layouts(settings.layouts)
         result = evaluate_vec_env(env, policy.predict, settings.episodes, on)
@@ -141,4 +157,4 @@ class AgentNode(Node):
 
 
 def main() -> int:
-    return run_node(AgentNode, AgentNode.run, (ValueError, ModelError, FileExistsError))
+    return run_node(AgentNode, AgentNode.run, (ValueError, ModelError, FileExistsError), AgentNode.check)

@@ -1,5 +1,5 @@
 """A trained policy as a small, self-describing folder: the deterministic actor's weights
-(`actor.safetensors`, a few hundred kB against the 9 MB of the learner's model.zip with its
+(`actor.safetensors`, a few hundred kB against the 9 MB of the learner's checkpoint state with its
 critics and optimiser) and what it observes (`policy.json`: the observation, the stage scheme,
 each entry's name, the run's full training config).
 

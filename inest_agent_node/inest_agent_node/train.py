@@ -1,9 +1,11 @@
 """Train SAC on the learned (or the environment's) reward, in one process (`inest-train`).
 
-Run folder: config.json (the full configuration), checkpoint/ (model.zip, replay_buffer.npz
-(replay_store.py), history.json, diagnostics.json, exploration.npz with the novelty memories,
-checkpoint.json with its step, size and the training seconds so far: the `--resume` point,
-written every `checkpoint_every` steps or `checkpoint_minutes`, whichever comes first),
+Run folder: config.json (the full configuration), checkpoint/ (the learner's state as arrays and
+JSON (learner_state.py), replay_buffer.npz (replay_store.py), history.json, diagnostics.json,
+exploration.npz with the novelty memories, and checkpoint.json, its manifest, with its step and
+the training seconds so far: the `--resume` point, written as one unit (checkpoint.py) every
+`checkpoint_every` steps or `checkpoint_minutes`, whichever comes first; nothing in it is
+pickled),
 tensorboard/ (evaluation scores and the reward diagnostics), and at the end results.json (final
 150-episode evaluation, learning curve points, reward diagnostics per evaluation interval,
 coverage of the visited embeddings, wall-clock seconds of training and final evaluation, config),
@@ -23,8 +25,16 @@ from typing import Any
 import numpy as np
 import torch
 import yaml
-from inest_common.files import RunFileError, read_json, read_run_file, write_atomic
-from inest_common.settings import add_setting_flags
+from inest_common.files import (
+    NO_SPACE_EXIT,
+    RunFileError,
+    no_space_message,
+    out_of_space,
+    read_json,
+    read_run_file,
+    write_atomic,
+)
+from inest_common.settings import OneLineParser, add_setting_flags
 from inest_reward_node.learning.coverage import measure_coverage, plot_coverage
 from inest_reward_node.learning.labelled_rollouts import RolloutLabelling
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings, prepare_run_dir
@@ -35,9 +45,11 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, unwrap_vec_wrapper
 
 from .callbacks import training_callbacks
-from .config import SPEED_ONLY_SETTINGS, TrainConfig, setting_defaults
+from .checkpoint import CHECKPOINT_DIR, CHECKPOINT_INFO, checkpoint_folder, read_manifest, write_checkpoint
+from .config import TrainConfig, setting_defaults
 from .envs import ConcurrentUpdatesVecEnv, RewardVecEnv, build_env
 from .evaluate import TEST, VALIDATION, EvalResult, Layouts, evaluate_vec_env, format_table, plot_learning_curve
+from .learner_state import load_learner_state, save_learner_state
 from .learners import (
     OverlappedUpdatesMixin,
     RewardBatchingMixin,
@@ -48,7 +60,6 @@ from .learners import (
 from .policy_export import EXPORTABLE, POLICY_DIR, export_policy, exported
 from .replay_store import load_replay_buffer, save_replay_buffer
 
-CHECKPOINT_DIR = "checkpoint"
 RESULTS_FILE = "results.json"
 EVALUATION_FILE = "evaluation.json"  # a saved policy evaluated over the graph (the agent node's evaluate mode)
 EXPLORATION_FILE = "exploration.npz"  # novelty memories and visited embeddings
@@ -56,10 +67,6 @@ SELF_NEGATIVES_FILE = "self-negatives.npz"  # the stage refit's self negatives s
 HISTORY_FILE = "history.json"  # the learning curve: [steps, mean score, std] per evaluation
 DIAGNOSTICS_FILE = "diagnostics.json"
 REPLAY_FILE = "replay_buffer.npz"
-# the checkpoint's step, its size in bytes, and the training seconds up to it, periodic evaluations
-# included, summed over resumes (the time between a run's last checkpoint and its kill is lost with
-# the steps it trained)
-CHECKPOINT_INFO = "checkpoint.json"
 EVAL_ENVS = 10  # evaluation episodes run side by side (one encoder pass for all their frames)
 
 
@@ -104,7 +111,6 @@ class Trainer:
         self.diagnostics: list[dict[str, float]] = []  # reward diagnostics per evaluation interval
         self.trained_seconds = 0.0  # up to the last checkpoint, over earlier sessions too
         self.session_start = time.monotonic()
-        checkpoint = self.run_dir / CHECKPOINT_DIR
         check_resume(self.run_dir, resume, start_over)
         torch.set_num_threads(config.threads)
         self.env = env if env is not None else build_env(config)
@@ -126,11 +132,9 @@ class Trainer:
             batching,
             drops_broken_steps=env is not None,  # the graph's simulators
         )
+        self.model = new_learner(algorithm, config, self.env, tensorboard_log=str(self.run_dir / "tensorboard"))
         if resume:
-            self.model = read_run_file(
-                checkpoint / "model.zip",
-                lambda path: algorithm.load(path, env=self.env, tensorboard_log=str(self.run_dir / "tensorboard")),
-            )
+            checkpoint = restore_learner(self.model, config.learner, self.run_dir)
             read_run_file(checkpoint / REPLAY_FILE, lambda path: load_replay_buffer(self.model.replay_buffer, path))
             self.history = read_run_file(checkpoint / HISTORY_FILE, read_json)
             self.diagnostics = read_run_file(checkpoint / DIAGNOSTICS_FILE, read_json)
@@ -148,15 +152,6 @@ class Trainer:
             if self.stage_refit is not None and (checkpoint / SELF_NEGATIVES_FILE).exists():
                 # without them the next refit would forget what the earlier ones pushed down
                 self.stage_refit.self_negatives.restore(read_run_file(checkpoint / SELF_NEGATIVES_FILE, read_npz))
-        else:
-            self.model = algorithm(
-                "MlpPolicy",
-                self.env,
-                **learner_kwargs(config.learner, config.sac),
-                tensorboard_log=str(self.run_dir / "tensorboard"),
-                seed=config.seed,
-                verbose=0,
-            )
         if overlap_updates:
             waiting_hook_owner(self.env).while_waiting = self.model.run_pending_updates
 
@@ -192,46 +187,47 @@ class Trainer:
         return evaluate_vec_env(self.eval_env, deterministic(self.model), episodes, on)
 
     def check_run_dir(self, overwrite: bool, start_over: bool) -> None:
-        settings = self.config.to_dict()
-        must_match = set() if start_over else set(settings) - SPEED_ONLY_SETTINGS - {"total_steps"}
-        prepare_run_dir(self.run_dir, settings, overwrite, must_match, setting_defaults())
+        must_match = self.config.settings_that_matter(start_over)
+        prepare_run_dir(self.run_dir, self.config.to_dict(), overwrite, must_match, setting_defaults())
 
     def save_checkpoint(self) -> int:
-        """Model, replay buffer, history and novelty memories, each written whole before it replaces
-        the last one, and checkpoint.json (written last: a checkpoint without it is incomplete).
-        Returns the checkpoint's size in bytes."""
-        checkpoint = self.run_dir / CHECKPOINT_DIR
-        checkpoint.mkdir(exist_ok=True)
+        """Learner state, replay buffer, history, diagnostics and novelty memories as one
+        checkpoint (checkpoint.py), then the exported policy. Returns the checkpoint's size in
+        bytes; NoSpaceError when the disk is full (the last checkpoint is kept)."""
         if isinstance(self.model, RewardBatchingMixin):
             self.model.settle_rewards()
-        write_atomic(checkpoint / REPLAY_FILE, lambda path: save_replay_buffer(self.model.replay_buffer, path))
-        write_atomic(checkpoint / "model.zip", lambda path: self.model.save(path))
-        write_atomic(checkpoint / HISTORY_FILE, lambda path: path.write_text(json.dumps(self.history)))
-        write_atomic(checkpoint / DIAGNOSTICS_FILE, lambda path: path.write_text(json.dumps(self.diagnostics)))
-        if self.config.learner in EXPORTABLE:
-            export_policy(self.model, self.config, self.run_dir / POLICY_DIR)  # inest-evaluate's, at every checkpoint
-        if self.reward_env is not None:
-            write_npz(checkpoint / EXPLORATION_FILE, self.reward_env.exploration_state())
-        if self.stage_refit is not None and self.stage_refit.self_negatives is not None:
-            write_npz(checkpoint / SELF_NEGATIVES_FILE, self.stage_refit.self_negatives.state())
         now = time.monotonic()
-        self.trained_seconds += now - self.session_start
-        self.session_start = now
-        size = sum(path.stat().st_size for path in checkpoint.iterdir() if path.name != CHECKPOINT_INFO)
         info = {
             "steps": int(self.model.num_timesteps),
-            "bytes": size,
-            "training_s": self.trained_seconds,
+            "training_s": self.trained_seconds + now - self.session_start,
             "stage_refits": self.refits,
         }
-        write_atomic(checkpoint / CHECKPOINT_INFO, lambda path: path.write_text(json.dumps(info) + "\n"))
+        size = write_checkpoint(self.run_dir, self.write_checkpoint_files, info)
+        self.trained_seconds, self.session_start = info["training_s"], now
+        if self.config.learner in EXPORTABLE:
+            export_policy(self.model, self.config, self.run_dir / POLICY_DIR)  # inest-evaluate's, at every checkpoint
         return size
+
+    def write_checkpoint_files(self, folder: Path) -> None:
+        save_learner_state(self.model, self.config.learner, folder)
+        save_replay_buffer(self.model.replay_buffer, folder / REPLAY_FILE)
+        (folder / HISTORY_FILE).write_text(json.dumps(self.history))
+        (folder / DIAGNOSTICS_FILE).write_text(json.dumps(self.diagnostics))
+        if self.reward_env is not None:
+            write_npz(folder / EXPLORATION_FILE, self.reward_env.exploration_state())
+        if self.stage_refit is not None and self.stage_refit.self_negatives is not None:
+            write_npz(folder / SELF_NEGATIVES_FILE, self.stage_refit.self_negatives.state())
 
     def train(self) -> EvalResult:
         remaining = self.config.total_steps - self.model.num_timesteps
         self.session_start = time.monotonic()  # not the set-up (models, compilation) before it
         if remaining > 0:
-            self.model.learn(remaining, callback=training_callbacks(self), reset_num_timesteps=False, tb_log_name="sac")
+            callbacks = training_callbacks(self)
+            try:
+                self.model.learn(remaining, callback=callbacks, reset_num_timesteps=False, tb_log_name="sac")
+            except BaseException:
+                callbacks.on_training_end()  # the progress bar closes before the line saying why
+                raise
             if isinstance(self.model, OverlappedUpdatesMixin):
                 self.model.run_pending_updates()  # the last update had no next step to overlap with
             self.save_checkpoint()
@@ -292,14 +288,38 @@ def reward_shares(diagnostics: list[dict[str, float]]) -> dict[str, dict[str, fl
     }
 
 
+def new_learner(algorithm: type, config: TrainConfig, env: VecEnv, tensorboard_log: str | None = None) -> Any:
+    """A fresh learner of class `algorithm` with the run's settings: the one training starts
+    from, and the one a checkpoint's state is loaded into (learner_state.py)."""
+    return algorithm(
+        "MlpPolicy",
+        env,
+        **learner_kwargs(config.learner, config.sac),
+        tensorboard_log=tensorboard_log,
+        seed=config.seed,
+        verbose=0,
+    )
+
+
+def restore_learner(model: Any, learner: str, run_dir: Path) -> Path:
+    """Load the state of the run's checkpoint into `model` (new_learner's, of the run's settings);
+    returns the checkpoint folder. RunFileError when there is none or it is not whole."""
+    checkpoint = checkpoint_folder(run_dir)
+    if checkpoint is None:
+        raise RunFileError(f"{run_dir} holds no checkpoint ({CHECKPOINT_DIR}/{CHECKPOINT_INFO})")
+    read_manifest(checkpoint)
+    load_learner_state(model, learner, checkpoint)
+    return checkpoint
+
+
 def has_checkpoint(run_dir: Path) -> bool:
-    """Whether the run in `run_dir` has a whole checkpoint to resume (its info file is written last)."""
-    return (run_dir / CHECKPOINT_DIR / CHECKPOINT_INFO).is_file()
+    """Whether the run in `run_dir` has a checkpoint to resume (checkpoint.py)."""
+    return checkpoint_folder(run_dir) is not None
 
 
 def checkpoint_steps(run_dir: Path) -> int:
     """The step of the run's checkpoint (has_checkpoint must hold)."""
-    return int(read_run_file(run_dir / CHECKPOINT_DIR / CHECKPOINT_INFO, read_json)["steps"])
+    return int(read_run_file(checkpoint_folder(run_dir) / CHECKPOINT_INFO, read_json)["steps"])
 
 
 def continuation(run_dir: Path) -> str | None:
@@ -337,15 +357,12 @@ def check_resume(run_dir: Path, resume: bool, start_over: bool) -> None:
 
 
 def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    def write(partial: Path) -> None:
-        with open(partial, "wb") as handle:
-            np.savez(handle, **arrays)
-
-    write_atomic(path, write)
+    with open(path, "wb") as handle:
+        np.savez(handle, **arrays)
 
 
 def read_npz(path: Path) -> dict[str, np.ndarray]:
-    with np.load(path) as arrays:
+    with np.load(path, allow_pickle=False) as arrays:
         return {key: arrays[key] for key in arrays.files}
 
 
@@ -364,7 +381,7 @@ TRAIN_FLAG_NAMES = {"intrinsic.mode": "intrinsic"}
 
 
 def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", help="run folder (required unless --print-config)")
     parser.add_argument("--config", help="YAML file of training settings (see inest_agent_node/config/train.yaml)")
     parser.add_argument(
@@ -412,6 +429,11 @@ def main(argv: list[str] | None = None) -> int:
     except (ModelError, FileExistsError, ValueError) as error:
         print(f"inest-train: {error}", file=sys.stderr)
         return 2
+    except Exception as error:
+        if not out_of_space(error):
+            raise
+        print(f"inest-train: {no_space_message(error)}", file=sys.stderr)
+        return NO_SPACE_EXIT
     print(format_table({f"{config.reward} ({trainer.model.num_timesteps} steps)": result}))
     print(f"wrote {Path(args.out) / RESULTS_FILE} and learning_curve.png")
     return 0

@@ -5,6 +5,7 @@ checkout, so that results read the same in any checkout. Standard library only."
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import os
@@ -21,6 +22,30 @@ T = TypeVar("T")
 UNREADABLE = (
     OSError, EOFError, pickle.UnpicklingError, zipfile.BadZipFile, ValueError, KeyError, RuntimeError, AssertionError
 )  # fmt: skip
+
+
+# a node's exit status when its disk refused more bytes (full, over quota, over a file size
+# limit): a restart would fail the same way, so the launcher does not restart it
+NO_SPACE_EXIT = 28  # ENOSPC's number
+_NO_SPACE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+
+
+class NoSpaceError(Exception):
+    """The disk refused a run file; the message says what was being written and what was kept."""
+
+
+def out_of_space(error: BaseException | None) -> bool:
+    """Whether `error` (or an error it was raised from) is the disk refusing more bytes."""
+    while error is not None:
+        if isinstance(error, NoSpaceError) or (isinstance(error, OSError) and error.errno in _NO_SPACE_ERRNOS):
+            return True
+        error = error.__cause__ or error.__context__
+    return False
+
+
+def no_space_message(error: BaseException) -> str:
+    """One line for an out-of-space failure (out_of_space(error) holds)."""
+    return str(error) if isinstance(error, NoSpaceError) else f"out of disk space: {error}"
 
 
 class RunFileError(ValueError):

@@ -34,6 +34,10 @@ def track(iterable: Iterable[Any] | None = None, **kwargs: Any) -> tqdm:
     if kwargs.get("disable") or stream.isatty():
         return tqdm(iterable, file=stream, **kwargs)
     kwargs.setdefault("mininterval", LINE_INTERVAL)
+    # a line every `mininterval` whatever the speed: tqdm's default adapts the count between lines to
+    # the first interval's rate, so after a fast start (an agent's random steps before its updates
+    # begin) a slower loop wrote no line for minutes, and a killed run's log did not show how far it got
+    kwargs.setdefault("miniters", 1)
     # tqdm's monitor thread redraws a bar quiet for `maxinterval` (10 s) with the count of its last
     # draw (a loop over an iterable keeps its count to itself between draws): in a log, each line again
     kwargs.setdefault("maxinterval", float("inf"))

@@ -23,6 +23,8 @@ from rclpy.experimental import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
+from .files import NO_SPACE_EXIT, no_space_message, out_of_space
+
 NANOSECONDS = 1_000_000_000
 
 
@@ -123,7 +125,9 @@ PARAMETER_RULE = re.compile(r"[A-Za-z_~][\w./~:]*:=(.*)", re.DOTALL)
 
 def malformed_parameter(argv: list[str]) -> str | None:
     """What is wrong with the first `-p NAME:=VALUE` of `argv`'s ROS arguments that rcl could not
-    parse (it would fail with a traceback), or None."""
+    parse (it would fail with a traceback) or would silently drop (an empty list, which has no
+    type: the parameter keeps an earlier value, as `inest-launch --param reward:streams:=[]` kept
+    the launcher's streams), or None."""
     inside = False
     for index, item in enumerate(argv):
         if item in ("--ros-args", "--"):
@@ -134,10 +138,13 @@ def malformed_parameter(argv: list[str]) -> str | None:
             if match is None:
                 return f"-p {rule!r} is not NAME:=VALUE"
             try:
-                if yaml.safe_load(match[1]) is None:
-                    return f"-p {rule!r} has no value"
+                value = yaml.safe_load(match[1])
             except yaml.YAMLError as error:
                 return f"-p {rule!r}: the value is not valid YAML ({str(error).splitlines()[0]})"
+            if value is None:
+                return f"-p {rule!r} has no value"
+            if value == []:
+                return f"-p {rule!r}: ROS cannot pass an empty list (an earlier value of the parameter would stay)"
     return None
 
 
@@ -145,10 +152,14 @@ def run_node(
     make_node: Callable[[], Node],
     spin: Callable[[Node], None] | None = None,
     config_errors: tuple[type[Exception], ...] = (ValueError,),
+    check: Callable[[Node], None] | None = None,
 ) -> int:
     """Init from sys.argv (so `--ros-args -p ... --params-file ...` work), spin, shut down cleanly
     on Ctrl-C or SIGTERM. `config_errors` (and ParameterError: a wrong type or an unknown name)
-    mean a bad configuration, as do arguments rcl cannot parse: one line on stderr, exit 2."""
+    mean a bad configuration, as do arguments rcl cannot parse: one line on stderr, exit 2.
+    `check(node)` refuses what the parameters name (a run folder, a file) once they are all known
+    and typed, so that a misspelt parameter is named rather than what its default led to; it runs
+    in inest-launch's check too (CHECK_ONLY_ENV)."""
     program = Path(sys.argv[0]).name
     if problem := malformed_parameter(sys.argv):
         print(f"{program}: {problem}", file=sys.stderr)
@@ -162,6 +173,8 @@ def run_node(
     try:
         node = make_node()
         reject_unknown_parameters(node)
+        if check is not None:
+            check(node)
         if os.environ.get(CHECK_ONLY_ENV):
             return 0
         (spin or spin_until_shutdown)(node)
@@ -170,7 +183,10 @@ def run_node(
     except config_errors as error:
         print(f"{program}: {error}", file=sys.stderr)
         return 2
-    except Exception:
+    except Exception as error:
+        if out_of_space(error):  # even under a SIGTERM: the checkpoint it was saving did not fit
+            print(f"{program}: {no_space_message(error)}", file=sys.stderr)
+            return NO_SPACE_EXIT
         if rclpy.ok():
             raise
         # raised because Ctrl-C or SIGTERM shut ROS down under the node (an RCLError from a

@@ -4,6 +4,7 @@ fields' choices checked from their types, and the dataclass built back from nest
 A field's help is the comment above it or at the end of its line; its choices are its
 `Literal[...]` type, or `field(metadata={CHOICES: callable})` for a registry that grows at run
 time. `rosutil.declare_dataclass` turns the same dataclasses into ROS parameters.
+`OneLineParser` makes a command's usage mistakes one line and exit status 2.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import tokenize
 import types
 import typing
 from collections.abc import Callable, Mapping
-from typing import Any, Literal
+from typing import Any, Literal, NoReturn
 
 FIELD_LINE = re.compile(r"    (\w+)\s*:")  # a field's declaration in its class body
 CHOICES = "choices"  # field metadata key: a callable returning the allowed values (a registry's names)
@@ -209,6 +210,15 @@ def _default_of(field: dataclasses.Field) -> Any:
     if field.default_factory is not dataclasses.MISSING:
         return field.default_factory()
     return None
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """Usage mistakes (an unknown flag, a missing value, a bad choice or type, `parser.error`) as
+    one line, `PROGRAM: what is wrong`, and exit status 2, like every other bad input: argparse's
+    own message puts the whole usage, a dozen lines for a command with many flags, before it."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog.split()[0]}: {message}\n")  # a subcommand's errors name the program
 
 
 def reject_unknown(data: Mapping[Any, Any], cls: type, what: str) -> None:

@@ -60,6 +60,7 @@ from inest_agent_node.train import (
 from inest_common.files import checkout_relative, read_json, read_run_file, write_atomic
 from inest_common.processes import dies_with_parent
 from inest_common.progress import track
+from inest_common.settings import OneLineParser
 from inest_reward_node.learning.labelled_rollouts import LABELLED_FILE
 from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings
 from inest_reward_node.learning.stage_refit import REFIT_MODEL_DIR
@@ -549,13 +550,6 @@ def positive(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
     return value
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """Usage mistakes as one line and exit status 2, like every other bad input here."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"inest-experiments: {message}\n")
 
 
 def main(argv: list[str] | None = None) -> int:

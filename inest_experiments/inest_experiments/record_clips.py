@@ -22,8 +22,9 @@ import numpy as np
 from inest_agent_node.envs import FRAME_KEY, TRUE_PROGRESS, build_env
 from inest_agent_node.learners import configure_jax_threads, learner_class
 from inest_agent_node.rewards import build_reward
-from inest_agent_node.train import CHECKPOINT_DIR
+from inest_agent_node.train import has_checkpoint, new_learner, restore_learner
 from inest_common.progress import track
+from inest_common.settings import OneLineParser
 from inest_reward_node.learning.clips import Clip, save_clips
 from inest_reward_node.runtime.model import ModelError
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
@@ -74,7 +75,8 @@ def record(run_dir: Path, episodes: int, seed: int, deterministic: bool, progres
     env = build_env(config, ENVS, seed, evaluation=True, wrap_simulators=keep)
     if config.learner.startswith("sbx"):
         configure_jax_threads(config.threads)
-    model = learner_class(config.learner).load(run_dir / CHECKPOINT_DIR / "model.zip", env=env)
+    model = new_learner(learner_class(config.learner), config, env)
+    restore_learner(model, config.learner, run_dir)
     recorder = recorders[0]
     observations = env.reset()
     with track(total=episodes, desc="recording clips", unit="episode", disable=not progress_bar) as bar:
@@ -86,7 +88,7 @@ def record(run_dir: Path, episodes: int, seed: int, deterministic: bool, progres
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=Path, help="a finished or checkpointed inest-train run folder")
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--out", type=Path, required=True, help="clip file to write (.npz)")
@@ -95,9 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error(f"--episodes must be >= 1, got {args.episodes}")
-    checkpoint = args.run / CHECKPOINT_DIR / "model.zip"
-    if not checkpoint.exists():
-        print(f"inest-record-clips: {checkpoint} does not exist (not an inest-train run folder?)", file=sys.stderr)
+    if not has_checkpoint(args.run):
+        print(f"inest-record-clips: {args.run} holds no checkpoint (not an inest-train run folder?)", file=sys.stderr)
         return 2
     try:
         args.out.parent.mkdir(parents=True, exist_ok=True)  # before the rollouts, not after

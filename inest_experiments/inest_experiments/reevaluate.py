@@ -20,6 +20,7 @@ from inest_agent_node.envs import build_env
 from inest_agent_node.evaluate import EvalResult, evaluate_vec_env, format_table, layouts
 from inest_agent_node.policy_export import POLICY_DIR, load_policy
 from inest_common.files import write_atomic
+from inest_common.settings import OneLineParser
 from inest_reward_node.learning.stage_refit import REFIT_MODEL_DIR
 from inest_reward_node.runtime.model import ModelError
 
@@ -61,7 +62,7 @@ def reevaluate(run: Path, spec: str, episodes: int) -> tuple[EvalResult, dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("runs", nargs="+", type=Path, help="run folders (with policy/) or policy folders")
     parser.add_argument(
         "--layouts", default="test", help="test (default), validation, legacy (the run's earlier ones) or FIRST:STOP"

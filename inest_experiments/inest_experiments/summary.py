@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 from inest_agent_node.train import CHECKPOINT_DIR, HISTORY_FILE, RESULTS_FILE
+from inest_common.settings import OneLineParser
 from inest_reward_node.learning.calibrate import recorded_supervision
 from inest_reward_node.runtime.model import ModelError, model_folder, read_model_metadata
 from scipy import stats
@@ -194,7 +195,7 @@ def write_summary(root: Path, summary: dict[str, Any], methods: list[str] | None
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("root", type=Path, help="folder of <method>/<run>/ training runs")
     args = parser.parse_args(argv)
     if not args.root.is_dir():

@@ -9,7 +9,6 @@ different arguments on an existing dataset are refused, so nothing saved is lost
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import multiprocessing
@@ -25,6 +24,7 @@ import gymnasium
 import numpy as np
 import pymunk
 from inest_common.progress import track
+from inest_common.settings import OneLineParser
 
 from . import __version__
 from .config import EnvConfig
@@ -235,7 +235,7 @@ def collect_dataset(
 
 def main(argv: list[str] | None = None) -> int:
     defaults = CollectConfig()
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser = OneLineParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, required=True, help="dataset folder to create or resume")
     parser.add_argument("--episodes", type=int, default=defaults.episodes)
     parser.add_argument("--valid-fraction", type=float, default=defaults.valid_fraction)

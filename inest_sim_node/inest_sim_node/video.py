@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
 import numpy as np
+from inest_common.settings import OneLineParser
 from PIL import Image
 
 from .dataset import DatasetError, DemoDataset, Episode
@@ -51,7 +51,7 @@ def write_video(frames: Sequence[np.ndarray], path: str | Path, fps: float = 8.0
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__)
+    parser = OneLineParser(description=__doc__)
     parser.add_argument("dataset", type=Path, help="dataset folder written by inest-collect-demos")
     parser.add_argument("--out", type=Path, required=True, help="output .gif or .mp4")
     parser.add_argument("--split", default="train", choices=("train", "valid"))

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 from inest_common.files import write_atomic
+from inest_common.settings import OneLineParser
 from inest_sim_node.scoring import NUM_BLOCKS
 
 from ..runtime.images import RESIZE_MODES, ImageRejected, decode_image
@@ -151,7 +152,7 @@ def write_sheets(folder: Path, episodes: list[np.ndarray]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("source", type=Path, help="a clip file (.npz) or an MCAP recording (.mcap)")
     parser.add_argument("labels", type=Path, nargs="?", help="the CSV label file")
     parser.add_argument("--out", type=Path, help="the labelled clip file to write")

@@ -29,7 +29,7 @@ import numpy as np
 import torch
 from inest_common.files import write_atomic
 from inest_common.progress import track
-from inest_common.settings import add_setting_flags, build_settings
+from inest_common.settings import OneLineParser, add_setting_flags, build_settings
 from inest_sim_node.dataset import DatasetError, DemoDataset
 
 from ..runtime.model import (
@@ -269,7 +269,7 @@ PRETRAIN_FLAG_NAMES = {
 
 
 def parse_args(argv: list[str] | None) -> tuple[PretrainConfig, argparse.Namespace]:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("dataset", help="demonstration dataset folder (inest-collect-demos)")
     parser.add_argument("--out", required=True, help="run folder")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")

@@ -69,7 +69,7 @@ from typing import Any
 
 import numpy as np
 from inest_common.progress import track
-from inest_common.settings import add_setting_flags, build_settings
+from inest_common.settings import OneLineParser, add_setting_flags, build_settings
 from inest_sim_node.dataset import DatasetError
 from inest_sim_node.expert import WRONG_ORDER
 from inest_sim_node.world import BLOCK_COLOURS
@@ -714,7 +714,7 @@ def format_summary(report: dict[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("model", help="model folder (a pretraining run's model/)")
     parser.add_argument("dataset", help="demonstration dataset; its validation split is used")
     parser.add_argument("--out", required=True, help="folder for report.json and the plots")

@@ -21,6 +21,28 @@ def merge_settings(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str,
     return merged
 
 
+def check_run_dir(
+    run_dir: Path,
+    settings: dict[str, Any],
+    resume: bool,
+    must_match: Iterable[str],
+    defaults: dict[str, Any] | None = None,
+) -> None:
+    """Refuse to overwrite a run unless resuming it unchanged, writing nothing (a launcher checks
+    its agent's run folder before any node starts). A setting the saved run lacks (added since)
+    counts as its value in `defaults`."""
+    path = run_dir / CONFIG_FILE
+    if not path.exists():
+        return
+    if not resume:
+        raise FileExistsError(f"{run_dir} already holds a run; pass --resume to continue it or pick --out")
+    as_json = json.loads(json.dumps({"settings": settings, "defaults": defaults or {}}))  # tuples -> lists
+    saved = merge_settings(as_json["defaults"], read_run_file(path, read_json))
+    differing = sorted(key for key in must_match if saved.get(key) != as_json["settings"][key])
+    if differing:
+        raise ValueError(f"cannot resume {run_dir}: settings differ from the saved run: {', '.join(differing)}")
+
+
 def prepare_run_dir(
     run_dir: Path,
     settings: dict[str, Any],
@@ -28,16 +50,7 @@ def prepare_run_dir(
     must_match: Iterable[str],
     defaults: dict[str, Any] | None = None,
 ) -> None:
-    """Create `run_dir` and write config.json; refuse to overwrite a run unless resuming it unchanged.
-    A setting the saved run lacks (added since) counts as its value in `defaults`."""
-    path = run_dir / CONFIG_FILE
-    if path.exists():
-        if not resume:
-            raise FileExistsError(f"{run_dir} already holds a run; pass --resume to continue it or pick --out")
-        as_json = json.loads(json.dumps({"settings": settings, "defaults": defaults or {}}))  # tuples -> lists
-        saved = merge_settings(as_json["defaults"], read_run_file(path, read_json))
-        differing = sorted(key for key in must_match if saved.get(key) != as_json["settings"][key])
-        if differing:
-            raise ValueError(f"cannot resume {run_dir}: settings differ from the saved run: {', '.join(differing)}")
+    """`check_run_dir`, then create `run_dir` and write config.json."""
+    check_run_dir(run_dir, settings, resume, must_match, defaults)
     run_dir.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(settings, indent=2) + "\n")
+    (run_dir / CONFIG_FILE).write_text(json.dumps(settings, indent=2) + "\n")

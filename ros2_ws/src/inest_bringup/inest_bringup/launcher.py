@@ -9,12 +9,13 @@ reward_trace.png; `--record FILE` adds the recorder (inest-record) to the graph.
 trains, simulators and reward node run `--nice` steps nicer than it (TRAINING_NICENESS) and on
 `--env-cpus` (every CPU but the first, so the agent's update has a CPU no simulator runs on).
 Before any node starts, each kind is built once with its parameters and model and exits
-(`refused_configuration`): a bad configuration is one line and exit 2, nothing started. A node
-that exits is restarted (supervisor.py: `--respawn` times in a row, with back-off; the agent
-with resume:=true from its checkpoint, or start_over:=true, said on the terminal, if it had
-none); a node that keeps dying or refuses its configuration stops the graph. Ctrl-C or
-SIGTERM (or the agent finishing) stops every child, the agent first (it saves a checkpoint);
-the launcher then exits 130 (143 for SIGTERM).
+(`refused_configuration`; the agent also checks its run folder, or in evaluate mode loads its
+policy): a bad configuration, like a usage mistake, is one line and exit 2, nothing started or
+written. A node that exits is restarted (supervisor.py: `--respawn` times in a row, with
+back-off; the agent with resume:=true from its checkpoint, or start_over:=true, said on the
+terminal, if it had none); a node that keeps dying or refuses its configuration stops the
+graph. Ctrl-C or SIGTERM (or the agent finishing) stops every child, the agent first (it saves a
+checkpoint); the launcher then exits 130 (143 for SIGTERM).
 """
 
 from __future__ import annotations
@@ -26,12 +27,15 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
+import time
 from collections.abc import Callable
 from pathlib import Path
 
 from inest_agent_node.evaluate import EvalResult, format_table
 from inest_agent_node.train import EVALUATION_FILE, RESULTS_FILE, checkpoint_steps, continuation, has_checkpoint
 from inest_common.rosutil import CHECK_ONLY_ENV
+from inest_common.settings import OneLineParser
 
 from .recording import RecordingError, check_target
 from .supervisor import (
@@ -50,6 +54,7 @@ FASTDDS_PROFILE = "fastdds_localhost.xml"
 NODES = ("sim", "reward", "agent")
 STOP_GRACE_S = 10.0
 AGENT_STOP_GRACE_S = 120.0  # the agent writes its checkpoint (model, replay buffer) before it exits
+CHECK_POLL_S = 0.05  # how often refused_configuration looks whether a check has ended
 
 
 def config_dir() -> Path:
@@ -126,22 +131,33 @@ def node_commands(args: argparse.Namespace, run_dir: Path) -> list[tuple[str, li
 
 def refused_configuration(commands: list[tuple[str, list[str]]], env: dict[str, str]) -> str | None:
     """Build each kind of node once (one simulator stands for all), in parallel and without joining
-    the graph's work (CHECK_ONLY_ENV): every parameter checked and the model loaded before any node
-    starts, so a bad configuration stops nothing half-started. The first refusal's line, or None."""
+    the graph's work (CHECK_ONLY_ENV): every parameter checked, the model loaded, the agent's run
+    folder or policy checked before any node starts, so a bad configuration stops nothing
+    half-started. The first refusal's line, or None; the other checks are then stopped, so a
+    refusal comes as soon as one node has found it. The checks' output and ROS's logs go to a
+    scratch folder: a refused launch writes nothing."""
     kinds = {name.rstrip("0123456789"): (name, argv) for name, argv in commands if name != "record"}
-    checks = {
-        name: subprocess.Popen(
-            argv, env=env | {CHECK_ONLY_ENV: "1"}, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
-        )
-        for name, argv in kinds.values()
-    }
-    refusals = []
-    for name, process in checks.items():
-        _, stderr = process.communicate()
-        if process.returncode:
-            lines = stderr.strip().splitlines() or [f"exit status {process.returncode}"]
-            refusals.append(f"{name} refused its configuration: {lines[-1]}")
-    return refusals[0] if refusals else None
+    with tempfile.TemporaryDirectory(prefix="inest-launch-check-") as scratch:
+        check_env = env | {CHECK_ONLY_ENV: "1", "ROS_LOG_DIR": scratch}
+        checks = {}
+        for name, argv in kinds.values():
+            with open(Path(scratch) / f"{name}.err", "w") as stderr:  # a file: no pipe for the child to fill
+                checks[name] = subprocess.Popen(argv, env=check_env, stdout=subprocess.DEVNULL, stderr=stderr)
+        while True:
+            running = [process for process in checks.values() if process.poll() is None]  # before the next line
+            refusal = next((name for name, process in checks.items() if process.poll()), None)
+            if refusal or not running:
+                break
+            time.sleep(CHECK_POLL_S)
+        for process in checks.values():
+            if process.poll() is None:
+                process.kill()
+            process.wait()
+        if refusal is None:
+            return None
+        lines = (Path(scratch) / f"{refusal}.err").read_text(errors="replace").strip().splitlines()
+        last = lines[-1] if lines else f"exit status {checks[refusal].returncode}"
+    return f"{refusal} refused its configuration: {last}"
 
 
 def print_results(agent_dir: Path) -> None:
@@ -200,7 +216,9 @@ def resuming_agent(run_dir: Path) -> Callable[[str, list[str]], list[str]]:
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(
+        prog="inest-launch", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--out", default="runs/graph", help="run folder (logs, agent run, reward trace)")
     parser.add_argument("--params", type=Path, default=config_dir() / PARAMS_FILE, help="ROS params file")
     parser.add_argument("--sims", type=int, default=1, help="simulator processes (namespaces sim0, sim1, ...)")
@@ -259,7 +277,6 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     run_dir = Path(args.out)
-    (run_dir / "logs").mkdir(parents=True, exist_ok=True)
     try:
         commands = node_commands(args, run_dir)
     except (ValueError, FileNotFoundError) as error:
@@ -269,6 +286,7 @@ def main(argv: list[str] | None = None) -> int:
     if refusal := refused_configuration(commands, env):
         print(f"inest-launch: {refusal}; nothing was started", file=sys.stderr)
         return 2
+    (run_dir / "logs").mkdir(parents=True, exist_ok=True)
     if args.resume and has_checkpoint(agent_dir := run_dir / "agent"):
         steps = checkpoint_steps(agent_dir)
         print(f"inest-launch: the agent resumes {agent_dir} from its checkpoint at step {steps}", flush=True)

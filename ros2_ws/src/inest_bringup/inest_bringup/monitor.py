@@ -1,12 +1,14 @@
 """`inest-monitor`: watch a running INEST graph's reward and subtask topics from a terminal.
 
 Prints one line per interval: steps/s from the simulators' episode status, the latest learned
-reward and subtask per stream, finished episodes and their mean score, and the reward node's
-health from /diagnostics. `--episode-lines` adds a line per finished episode: its score and the
-steps at which the learned reward's subtask went up (`sim0: episode 3: 3 of 3 blocks placed in
-order (score 1.00); the learned reward's subtask 1 at step 14, 2 at 40, done at 63`). A line that would only repeat
-the last one's step count (a graph waiting to start, a final evaluation) is left out, but one
-comes at least every QUIET_LINE_S. `--plot` writes a reward-trace PNG on exit (Ctrl-C).
+reward and subtask per stream with how sure the reward has been of that subtask since it was
+reached (the mean stage confidence of its frames), finished episodes and their mean score, and
+the reward node's health from /diagnostics. `--episode-lines` adds a line per finished episode:
+its score and the steps at which the learned reward's subtask went up (`sim0: episode 3: 3 of 3
+blocks placed in order (score 1.00); the learned reward's subtask 1 at step 14, 2 at 40, done at
+63`). A line that would only repeat the last one's step count (a graph waiting to start, a final
+evaluation) is left out, but one comes at least every QUIET_LINE_S. `--plot` writes a
+reward-trace PNG on exit (Ctrl-C).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from pathlib import Path
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from inest_common.rosutil import namespaced
+from inest_common.settings import OneLineParser
 from inest_interfaces.msg import EpisodeStatus, Reward
 from inest_sim_node.scoring import NUM_BLOCKS
 from rclpy.executors import ExternalShutdownException
@@ -38,12 +41,22 @@ class StreamView:
     scores: deque = field(default_factory=lambda: deque(maxlen=20))
     reward: float = float("nan")
     subtask: str = "-"
-    confidence: float = float("nan")  # Reward.stage_confidence of the latest frame
+    stage: int = -1  # Reward.subtask of the latest frame
+    # Reward.stage_confidence summed over the frames since `stage` was reached: one frame's is noisy
+    # (the stage head may doubt, for a few frames, a block the tracker has seen placed, and a latched
+    # "done" read "sure 0.00"); their mean says how well the evidence has backed the stage
+    confidence_sum: float = 0.0
+    confidence_frames: int = 0
     num_subtasks: int = 0
     trace: deque = field(default_factory=lambda: deque(maxlen=TRACE_STEPS))  # (reward, subtask)
     climbs: list[tuple[int, int]] = field(default_factory=list)  # (step, subtask) each time a new high was reached
     highest: int = 0  # this episode's highest subtask so far
     finished: EpisodeStatus | None = None  # the end of an episode whose last reward may still come
+
+    @property
+    def confidence(self) -> float:
+        """The stage's mean confidence since it was reached (NaN: none read, or no frame yet)."""
+        return self.confidence_sum / self.confidence_frames if self.confidence_frames else float("nan")
 
 
 def climb_text(climbs: list[tuple[int, int]], num_subtasks: int) -> str:
@@ -57,7 +70,7 @@ def climb_text(climbs: list[tuple[int, int]], num_subtasks: int) -> str:
 
 
 def confidence_text(confidence: float) -> str:
-    """` (sure 0.93)`: the stage's confidence, when the reward reads stage evidence."""
+    """` (sure 0.93)`: the stage's mean confidence, when the reward reads stage evidence."""
     return "" if math.isnan(confidence) else f" (sure {confidence:.2f})"
 
 
@@ -83,13 +96,16 @@ class GraphMonitor(Node):
         view = self.views[index]
         if msg.episode_frame <= 1:  # a new episode's first frame
             self.end_episode(index)
-            view.climbs, view.highest = [], 0
+            view.climbs, view.highest, view.stage = [], 0, -1
+        if msg.subtask != view.stage:
+            view.stage, view.confidence_sum, view.confidence_frames = msg.subtask, 0.0, 0
         if msg.subtask > view.highest:
             view.climbs.append((msg.episode_frame, msg.subtask))
             view.highest = msg.subtask
         done = " done" if msg.subtask >= msg.num_subtasks else ""  # Reward.subtask == num_subtasks: all done
         view.reward, view.subtask = msg.total, f"{msg.subtask}/{msg.num_subtasks}{done}"
-        view.confidence = msg.stage_confidence
+        view.confidence_sum += msg.stage_confidence
+        view.confidence_frames += 1
         view.num_subtasks = msg.num_subtasks
         view.trace.append((msg.total, msg.subtask))
 
@@ -212,7 +228,7 @@ def watch(monitor: GraphMonitor, interval: float, until=lambda: False, duration:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--namespaces", nargs="+", default=["sim0"], help="simulator namespaces ('' for none)")
     parser.add_argument("--interval", type=float, default=1.0, help="seconds between lines")
     parser.add_argument("--duration", type=float, help="stop after this many seconds (default: Ctrl-C)")

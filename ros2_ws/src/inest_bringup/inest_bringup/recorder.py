@@ -18,6 +18,7 @@ from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray
 from inest_common.rosutil import namespaced, run_node
+from inest_common.settings import OneLineParser
 from inest_interfaces.msg import EpisodeStatus, Reward
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -82,7 +83,7 @@ class RecorderNode(Node):
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("file", type=Path, help="the MCAP file to write")
     parser.add_argument("--namespaces", nargs="+", default=["sim0"], help="simulator namespaces ('' for none)")
     parser.add_argument("--images", action="store_true", help="also record the camera images (large)")

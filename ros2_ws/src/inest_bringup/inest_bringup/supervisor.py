@@ -5,7 +5,8 @@ Like `respawn`/`respawn_delay` of ROS launch, with a bound: a node that exits is
 after `delay` seconds, doubled for each further restart in a row; one that stays up for
 `healthy_after` seconds starts its count over. The graph stops, with one message, when a node
 keeps dying (more than `max_respawns` restarts in a row), when one refuses its configuration
-(exit code 2: a restart would only repeat it), or when the agent finishes (exit 0).
+(exit code 2: a restart would only repeat it), when one ran out of disk space (NO_SPACE_EXIT:
+so would a restart), or when the agent finishes (exit 0).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from inest_common.files import NO_SPACE_EXIT
 from inest_common.processes import dies_with_parent
 
 CONFIG_ERROR = 2  # the nodes' exit code for a bad parameter or run file
@@ -181,6 +183,8 @@ class Supervisor:
             return Outcome(0, "")
         if code == CONFIG_ERROR:
             return Outcome(CONFIG_ERROR, f"{child.name} refused its configuration: {last_line(child.log)}")
+        if code == NO_SPACE_EXIT:
+            return Outcome(NO_SPACE_EXIT, f"{child.name} ran out of disk space: {last_line(child.log)}")
         if now - child.started >= self.policy.healthy_after:
             child.restarts = 0
         if child.restarts >= self.policy.max_respawns:

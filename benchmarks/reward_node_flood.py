@@ -5,14 +5,18 @@ and publishes, on one image topic, a valid camera at 30 Hz plus a 1 kHz burst of
 frames (a wrong encoding, a short step, a data length that does not match, no data, 1x1 and
 oversized frames). When the model's stage head reads a scene camera (the default model's), each
 valid frame's scene frame goes out beside it, stamped alike, at the same size. Phases: 96x96
-rgb8 camera + burst, 640x480 bgr8 camera alone, 640x480 bgr8 camera + burst, and with a scene
-camera 640x480 with 1 in 10 scene frames withheld. For each: valid-frame latency percentiles
-(publish -> reward), valid frames answered, counted as dropped or stale in /diagnostics, and
-uncounted; malformed frames rejected; the pairing's cost (frames that waited for their scene
-frame, the p99 of that wait, unpaired frames). Target: valid-frame p99 <= 15 ms, uncounted 0.
-Prints one JSON object; a phase with no answers, or with uncounted frames, ends the run with one
-line and exit 1. `reward_node_flood.py [MODEL_FOLDER] [--seconds S]` (default the committed
-default model, runtime.model.DEFAULT_MODEL); further arguments go to the node (`-p threads:=2`).
+rgb8 camera + burst, 640x480 bgr8 camera alone, 640x480 bgr8 camera + burst, with a scene camera
+640x480 with 1 in 10 scene frames withheld, and, on a second node with
+`image_transport:=compressed`, a 640x480 JPEG camera (quality 80, compressed_image_transport's
+default) with its JPEG scene frames, each camera frame a simulator frame enlarged to 640x480
+with sensor-like noise (random pixels would make a JPEG several times a camera's size). For
+each: valid-frame latency percentiles (publish -> reward), valid frames answered, counted as
+dropped or stale in /diagnostics, and uncounted; malformed frames rejected; the pairing's cost
+(frames that waited for their scene frame, the p99 of that wait, unpaired frames). Target:
+valid-frame p99 <= 15 ms, uncounted 0. Prints one JSON object; a phase with no answers, or with
+uncounted frames, ends the run with one line and exit 1. `reward_node_flood.py [MODEL_FOLDER]
+[--seconds S]` (default the committed default model, runtime.model.DEFAULT_MODEL); further
+arguments go to the node (`-p threads:=2`).
 """
 
 from __future__ import annotations
@@ -21,10 +25,11 @@ import argparse
 import json
 import time
 
+import cv2
 import numpy as np
 import rclpy
 from inest_reward_node.runtime.model import DEFAULT_MODEL
-from reward_node_harness import RewardNodeUnderTest, image
+from reward_node_harness import RewardNodeUnderTest, image, simulator_frames
 
 CAMERA_HZ, BURST_HZ = 30.0, 1000.0
 BENCHMARK = "reward_node_flood"
@@ -93,6 +98,15 @@ def phase(
     }
 
 
+def camera_like(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A simulator frame and its scene frame enlarged to 640x480, with sensor-like noise (sigma 3)."""
+    frames = []
+    for frame in (view[0] for view in simulator_frames(1)):
+        large = cv2.resize(frame, (640, 480), interpolation=cv2.INTER_LINEAR).astype(np.float32)
+        frames.append(np.clip(large + rng.normal(0, 3, large.shape), 0, 255).astype(np.uint8))
+    return frames[0], frames[1]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("model", nargs="?", default=DEFAULT_MODEL)
@@ -117,6 +131,15 @@ def main() -> None:
         lines = under_test.log_lines()
     finally:
         under_test.close()
+    compressed = RewardNodeUnderTest(BENCHMARK, args.model, node_args, image_transport="compressed")
+    try:
+        compressed.wait_until_ready()
+        phase(compressed, "warm-up", camera_like(rng), "jpeg", False, 2.0)
+        phases["camera_640x480_jpeg"] = phase(
+            compressed, "camera_640x480_jpeg", camera_like(rng), "jpeg", False, args.seconds
+        )
+    finally:
+        compressed.close()
     print(
         json.dumps(
             {

@@ -21,16 +21,17 @@ from diagnostic_msgs.msg import DiagnosticArray
 from inest_bringup.launcher import graph_environment
 from inest_common.rosutil import namespaced
 from inest_interfaces.msg import Reward
-from inest_reward_node.runtime.images import encode_rgb
+from inest_reward_node.runtime.images import COMPRESSIONS, encode_compressed, encode_rgb
 from inest_reward_node.runtime.model import ModelError, load_model
 from inest_reward_node.runtime.rewards import RewardScorer
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CompressedImage, Image
 
 from inest_sim_node import EnvConfig, SweepToTopEnv
 
 IMAGE_TOPIC = "camera/image_raw"
 SCENE_TOPIC = "camera/scene/image_raw"
 SIMULATOR_SIZE = 96  # px, the simulator's frames: the default model's input
+JPEG_QUALITY = 80  # compressed_image_transport's default jpeg_quality
 
 
 def fail(benchmark: str, why: str) -> NoReturn:
@@ -38,11 +39,16 @@ def fail(benchmark: str, why: str) -> NoReturn:
     sys.exit(1)
 
 
-def image(frame: np.ndarray, encoding: str, stamp: int) -> Image:
-    data, step = encode_rgb(frame, encoding)
-    msg = Image(height=frame.shape[0], width=frame.shape[1], encoding=encoding, step=step)
+def image(frame: np.ndarray, encoding: str, stamp: int) -> Image | CompressedImage:
+    """A raw Image in `encoding`, or for "jpeg" or "png" the CompressedImage image_transport's
+    compressed transport publishes."""
+    if encoding in COMPRESSIONS:
+        msg = CompressedImage(format=f"rgb8; {encoding} compressed bgr8")
+        msg.data = encode_compressed(frame, encoding, JPEG_QUALITY)
+    else:
+        data, step = encode_rgb(frame, encoding)
+        msg = Image(height=frame.shape[0], width=frame.shape[1], encoding=encoding, step=step, data=data)
     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp, 10**9)
-    msg.data = data
     return msg
 
 
@@ -77,7 +83,8 @@ def percentiles(latencies_ms: np.ndarray) -> dict[str, float]:
 class RewardNodeUnderTest:
     """`inest-reward-node` in its own process, and this process's node that feeds and watches it.
     `streams`: the node's `streams` parameter, one namespace per camera; the default, one stream
-    in no namespace. Stream arguments below are indices into it."""
+    in no namespace. Stream arguments below are indices into it. `image_transport`: the node's
+    (raw: Image on the topics; compressed: CompressedImage on <topic>/compressed)."""
 
     def __init__(
         self,
@@ -86,6 +93,7 @@ class RewardNodeUnderTest:
         node_args: list[str],
         diagnostics_period: float = 0.5,
         streams: tuple[str, ...] = ("",),
+        image_transport: str = "raw",
     ) -> None:
         self.benchmark, self.streams = benchmark, streams
         self.stage_camera = stage_camera(benchmark, model)
@@ -99,6 +107,7 @@ class RewardNodeUnderTest:
                 [str(Path(sys.executable).parent / "inest-reward-node"), "--ros-args",
                  "-p", f"model:={Path(model).resolve()}", "-p", f"image_topic:={IMAGE_TOPIC}",
                  "-p", f"stage_image_topic:={SCENE_TOPIC}", "-p", f"diagnostics_period:={diagnostics_period}",
+                 "-p", f"image_transport:={image_transport}",
                  *([] if streams == ("",) else ["-p", f"streams:=[{','.join(streams)}]"]), *node_args],
                 env=env, stdout=log, stderr=subprocess.STDOUT,
             )  # fmt: skip
@@ -108,13 +117,15 @@ class RewardNodeUnderTest:
         self.received: list[dict[int, float]] = [{} for _ in streams]
         self.diagnostics: list[dict[str, str]] = []
         self.cameras, self.scenes = [], []
+        message, self.suffix = (Image, "") if image_transport == "raw" else (CompressedImage, "/compressed")
         for index, namespace in enumerate(streams):
             self.node.create_subscription(
                 Reward, namespaced(namespace, "reward"), lambda msg, i=index: self.on_reward(i, msg), 1000
             )
-            self.cameras.append(self.node.create_publisher(Image, namespaced(namespace, IMAGE_TOPIC), 1000))
-            scene_topic = namespaced(namespace, SCENE_TOPIC)
-            self.scenes.append(self.node.create_publisher(Image, scene_topic, 1000) if self.stage_camera else None)
+            camera_topic = namespaced(namespace, IMAGE_TOPIC) + self.suffix
+            scene_topic = namespaced(namespace, SCENE_TOPIC) + self.suffix
+            self.cameras.append(self.node.create_publisher(message, camera_topic, 1000))
+            self.scenes.append(self.node.create_publisher(message, scene_topic, 1000) if self.stage_camera else None)
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 100)
 
     def on_reward(self, stream: int, msg: Reward) -> None:
@@ -129,7 +140,7 @@ class RewardNodeUnderTest:
         for namespace, camera, scene in zip(self.streams, self.cameras, self.scenes, strict=True):
             for topic, publisher in ((IMAGE_TOPIC, camera), (SCENE_TOPIC, scene)):
                 if publisher is not None and not publisher.get_subscription_count():
-                    waiting.append(f"a subscriber of {namespaced(namespace, topic)}")
+                    waiting.append(f"a subscriber of {namespaced(namespace, topic)}{self.suffix}")
             if not self.node.count_publishers(reward := namespaced(namespace, "reward")):
                 waiting.append(f"a publisher of {reward}")
         return waiting
@@ -144,7 +155,7 @@ class RewardNodeUnderTest:
             if time.monotonic() > deadline:
                 fail(self.benchmark, f"after {timeout:.0f} s the graph still lacks {', '.join(missing)}")
 
-    def publish(self, camera: Image, scene: Image | None, stream: int = 0) -> None:
+    def publish(self, camera: Image | CompressedImage, scene: Image | CompressedImage | None, stream: int = 0) -> None:
         """One moment of a stream: the camera's frame, then (if the node reads one) the scene
         camera's, unless `scene` is None (a withheld frame)."""
         self.cameras[stream].publish(camera)

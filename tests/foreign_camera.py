@@ -7,8 +7,10 @@ malformed images, and at the end calls `reset_reward` and sends the first frame 
 (the scene camera a stage head reads), `--withhold I` all but frame I's, which is then expected
 to get no reward; `--scene-delay S` sends each scene frame S seconds after its frame;
 `--jump-back I` sends, before frame I, one scene frame alone (its frame lost) and then starts
-the clock over: frame I is stamped like frame 0. Writes what it received as JSON. Used by
-tests/test_graph.py and tests/test_scene_stage.py.
+the clock over: frame I is stamped like frame 0. `--compressed jpeg|png` publishes
+sensor_msgs/CompressedImage on `<topic>/compressed` instead, as image_transport's compressed
+transport does (its malformed frames: an unknown format, a JPEG without a frame header, no
+data). Writes what it received as JSON. Used by tests/test_graph.py and tests/test_scene_stage.py.
 """
 
 from __future__ import annotations
@@ -22,13 +24,14 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from inest_interfaces.msg import Reward
-from sensor_msgs.msg import Image
+from inest_reward_node.runtime.images import encode_compressed
+from sensor_msgs.msg import CompressedImage, Image
 from std_srvs.srv import Trigger
 
 PERIOD_NS = 125_000_000
 
 
-def image(frame: np.ndarray, stamp_ns: int) -> Image:
+def raw_image(frame: np.ndarray, stamp_ns: int) -> Image:
     bgr = np.ascontiguousarray(frame[..., ::-1])
     msg = Image(height=frame.shape[0], width=frame.shape[1], encoding="bgr8", step=frame.shape[1] * 3)
     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
@@ -37,12 +40,29 @@ def image(frame: np.ndarray, stamp_ns: int) -> Image:
     return msg
 
 
+def compressed_image(frame: np.ndarray, stamp_ns: int, compression: str) -> CompressedImage:
+    msg = CompressedImage(format=f"rgb8; {compression} compressed bgr8", data=encode_compressed(frame, compression))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+    msg.header.frame_id = "foreign_camera"
+    return msg
+
+
+def malformed_compressed(frame: np.ndarray, compression: str) -> list[CompressedImage]:
+    unknown_format = compressed_image(frame, 1, compression)
+    unknown_format.format = "tiff"
+    no_frame_header = compressed_image(frame, 2, compression)
+    no_frame_header.format, no_frame_header.data = "jpeg", b"\xff\xd8" + bytes(64)
+    empty = compressed_image(frame, 3, compression)
+    empty.data = b""
+    return [unknown_format, no_frame_header, empty]
+
+
 def malformed(frame: np.ndarray) -> list[Image]:
-    wrong_encoding = image(frame, 1)
+    wrong_encoding = raw_image(frame, 1)
     wrong_encoding.encoding = "mono16"
-    short_step = image(frame, 2)
+    short_step = raw_image(frame, 2)
     short_step.step = frame.shape[1] * 3 - 1
-    empty = image(frame, 3)
+    empty = raw_image(frame, 3)
     empty.data = b""
     return [wrong_encoding, short_step, empty]
 
@@ -65,13 +85,19 @@ def main() -> None:
     parser.add_argument("--withhold", type=int, help="the index of a scene frame not to send")
     parser.add_argument("--scene-delay", type=float, default=0.0, help="seconds between a frame and its scene frame")
     parser.add_argument("--jump-back", type=int, help="the index of the first frame after the clock starts over")
+    parser.add_argument("--compressed", choices=("jpeg", "png"), help="publish CompressedImage on <topic>/compressed")
     args = parser.parse_args()
     frames = np.load(args.frames)
     scene = None if args.scene is None else np.load(args.scene)
     rclpy.init()
     node = rclpy.create_node("foreign_camera")
-    publisher = node.create_publisher(Image, "camera/image_raw", 10)
-    scene_publisher = node.create_publisher(Image, "camera/allo/image_raw", 10)
+    message, suffix = (CompressedImage, "/compressed") if args.compressed else (Image, "")
+    publisher = node.create_publisher(message, "camera/image_raw" + suffix, 10)
+    scene_publisher = node.create_publisher(message, "camera/allo/image_raw" + suffix, 10)
+
+    def image(frame: np.ndarray, stamp_ns: int) -> Image | CompressedImage:
+        return compressed_image(frame, stamp_ns, args.compressed) if args.compressed else raw_image(frame, stamp_ns)
+
     rewards: dict[int, Reward] = {}
     rejected, rejected_total, reasons = [0], [0], []
     unpaired_total, stage_unpaired_total = [0], [0]
@@ -95,7 +121,7 @@ def main() -> None:
     if scene is not None:
         spin_until(node, lambda: scene_publisher.get_subscription_count() > 0, 60, "the scene subscription")
     if args.malformed:
-        for msg in malformed(frames[0]):
+        for msg in malformed_compressed(frames[0], args.compressed) if args.compressed else malformed(frames[0]):
             publisher.publish(msg)
     received = []
 

@@ -91,6 +91,30 @@ def test_a_foreign_camera_gets_rewards_that_match_the_library_frame_by_frame(gra
         assert reason in log
 
 
+def test_a_compressed_camera_is_scored_as_its_frames_and_malformed_files_are_refused(
+    graph, tiny_model, tiny_demos, tmp_path
+):
+    model = load_model(tiny_model)
+    frames = next(iter(load_demos(tiny_demos, "train", "ego", model.image_size, progress_bar=False))).frames[:12]
+    np.save(tmp_path / "frames.npy", frames)
+    transport = ("-p", "image_topic:=camera/image_raw", "-p", "image_transport:=compressed")
+    graph.start("reward", *reward_node_args(tiny_model, *transport))
+    camera = subprocess.run(
+        [sys.executable, FOREIGN_CAMERA, tmp_path / "frames.npy", tmp_path / "out.json", "--malformed",
+         "--compressed", "png"],
+        env=graph.env, capture_output=True, text=True, timeout=240,
+    )  # fmt: skip
+    assert camera.returncode == 0, camera.stdout + camera.stderr + graph.log("reward")
+    received = json.loads((tmp_path / "out.json").read_text())
+    library = RewardScorer(model, 3, intrinsic=IntrinsicConfig(mode="embedding"))
+    expected = [library.score(frame[None]).total[0] for frame in frames]  # PNG is lossless: the same frames
+    np.testing.assert_allclose([r["total"] for r in received["rewards"]], expected, rtol=1e-4, atol=1e-5)
+    assert received["rejected"] == 3
+    log = graph.log("reward")
+    for reason in ("unsupported compressed format 'tiff'", "a JPEG file without a frame header", "no data in a png"):
+        assert reason in log
+
+
 def test_lockstep_training_over_the_graph_with_two_simulators(graph, tiny_model, tmp_path):
     for index in range(2):
         graph.start(f"sim{index}", *sim_node_args(f"sim{index}", "-p", f"publish_clock:={index == 0}".lower()))

@@ -1,11 +1,20 @@
-"""Raw camera buffers to RGB frames: the encodings a camera sends, and the buffers the reward node must refuse."""
+"""Raw camera buffers and JPEG or PNG files to RGB frames: the encodings a camera sends, and the
+buffers the reward node must refuse."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
 import pytest
-from inest_reward_node.runtime.images import ImageRejected, decode_image, encode_rgb, fit_square
+from inest_reward_node.runtime.images import (
+    ImageRejected,
+    compressed_size,
+    decode_compressed,
+    decode_image,
+    encode_compressed,
+    encode_rgb,
+    fit_square,
+)
 
 FRAME = np.random.default_rng(0).integers(0, 256, (5, 7, 3), dtype=np.uint8)
 
@@ -73,3 +82,66 @@ def test_crop_takes_the_centred_square_and_squash_keeps_the_whole_frame():
     np.testing.assert_array_equal(squashed, cv2.resize(LARGE, (96, 96), interpolation=cv2.INTER_AREA))
     tall = LARGE.transpose(1, 0, 2)  # 480 wide, 640 high: rows 80..560
     np.testing.assert_array_equal(fit_square(tall, 480), tall[80:560])
+
+
+def test_a_mono8_frame_becomes_grey_rgb():
+    grey = cv2.cvtColor(FRAME, cv2.COLOR_RGB2GRAY)
+    data, step = encode_rgb(FRAME, "mono8")
+    assert step == 7 and data == grey.tobytes()
+    decoded = decode_image("mono8", 5, 7, step, data)
+    assert decoded.shape == (5, 7, 3) and all((decoded[..., c] == grey).all() for c in range(3))
+    data, step = encode_rgb(LARGE, "mono8")
+    assert decode_image("mono8", 480, 640, step, data, size=96).shape == (96, 96, 3)
+
+
+SMOOTH = cv2.GaussianBlur(LARGE, (0, 0), 6)  # a camera's image compresses; noise would not
+
+
+@pytest.mark.parametrize("image_format", ["png", "jpeg", "rgb8; png compressed bgr8", "bgr8; jpeg compressed bgr8"])
+def test_compressed_frames_decode_to_rgb_and_their_size_is_read_from_the_header(image_format):
+    compression = "png" if "png" in image_format else "jpeg"
+    data = encode_compressed(SMOOTH, compression)
+    assert compressed_size(compression, np.frombuffer(data, np.uint8)) == (480, 640)
+    whole, height, width = decode_compressed(image_format, data)
+    assert (height, width) == (480, 640) and whole.shape == (480, 640, 3)
+    if compression == "png":  # lossless
+        np.testing.assert_array_equal(whole, SMOOTH)
+    assert np.abs(whole.astype(int) - SMOOTH).mean() < 2  # the colours are RGB, not BGR
+    fitted, _, _ = decode_compressed(image_format, data, size=96)
+    # a JPEG decoded at 1/4 scale (160x120) and then fitted: what the whole frame fitted gives
+    assert np.abs(fitted.astype(int) - fit_square(whole, 96)).mean() < 2
+
+
+def test_a_grey_jpeg_becomes_grey_rgb():
+    grey = cv2.cvtColor(SMOOTH, cv2.COLOR_RGB2GRAY)
+    data = cv2.imencode(".jpg", grey)[1].tobytes()
+    frame, _, _ = decode_compressed("mono8; jpeg compressed mono8", data, size=96)
+    assert frame.shape == (96, 96, 3) and (frame[..., 0] == frame[..., 2]).all()
+
+
+def huge_png_header() -> bytes:
+    """A PNG signature and header claiming 100000x100000 pixels, and nothing else."""
+    header = b"IHDR" + (100_000).to_bytes(4, "big") * 2 + bytes([8, 2, 0, 0, 0])
+    return b"\x89PNG\r\n\x1a\n" + (13).to_bytes(4, "big") + header + bytes(4)
+
+
+@pytest.mark.parametrize(
+    ("image_format", "data", "kind", "reason"),
+    [
+        ("tiff", b"II*\x00", "format", "unsupported compressed format 'tiff'; expected jpeg or png"),
+        ("jpeg", b"", "no_data", "no data in a jpeg image"),
+        ("jpeg", b"\xff\xd8" + bytes(64), "undecodable", "a JPEG file without a frame header"),
+        ("png", b"GIF89a" + bytes(40), "undecodable", "not a PNG file"),
+        ("png", huge_png_header(), "too_large", "100000x100000 png image is larger than max_image_size 4096"),
+        (
+            "jpeg",
+            encode_compressed(FRAME[:3, :3], "jpeg"),
+            "too_small",
+            "3x3 jpeg image is smaller than min_image_size",
+        ),
+    ],
+)
+def test_malformed_compressed_frames_are_rejected_with_the_reason_before_decoding(image_format, data, kind, reason):
+    with pytest.raises(ImageRejected, match=reason) as rejected:
+        decode_compressed(image_format, data, size=96, min_size=4, max_size=4096)
+    assert rejected.value.kind == kind

@@ -381,7 +381,9 @@ TRAIN_FLAG_NAMES = {"intrinsic.mode": "intrinsic"}
 
 
 def parse_args(argv: list[str] | None) -> tuple[TrainConfig, argparse.Namespace]:
-    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(
+        prog="inest-train", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--out", help="run folder (required unless --print-config)")
     parser.add_argument("--config", help="YAML file of training settings (see inest_agent_node/config/train.yaml)")
     parser.add_argument(

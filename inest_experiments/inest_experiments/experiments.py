@@ -121,7 +121,7 @@ def train_settings(argv: list[str]) -> dict[str, Any]:
             config, _ = parse_args(argv)
     except SystemExit:
         lines = complaint.getvalue().strip().splitlines() or ["not a valid inest-train command"]
-        raise ValueError(lines[-1].split("error: ", 1)[-1]) from None
+        raise ValueError(lines[-1].removeprefix("inest-train: ")) from None
     except yaml.YAMLError as error:
         raise ValueError(" ".join(str(error).split())) from None
     return json.loads(json.dumps(config.to_dict()))  # as grid.json holds it: tuples as lists

@@ -1,9 +1,11 @@
 """`inest-reward-node`: the learned reward served over ROS 2 (a thin adapter over serving.py).
 
-Subscribes to `<stream>/<image_topic>` (sensor_msgs/Image: rgb8, bgr8, rgba8, bgra8, sides within
-`min_image_size`..`max_image_size`) for every stream in `streams`, and to `<stream>/<stage_image_topic>`
-too when the model's stage head reads a second camera (a scene camera; its frames pair with
-the first camera's by stamp); publishes `<stream>/reward`
+Subscribes to `<stream>/<image_topic>` (sensor_msgs/Image: rgb8, bgr8, rgba8, bgra8, mono8, sides
+within `min_image_size`..`max_image_size`) for every stream in `streams`, and to
+`<stream>/<stage_image_topic>` too when the model's stage head reads a second camera (a scene
+camera; its frames pair with the first camera's by stamp); with `image_transport:=compressed`,
+to `<topic>/compressed` instead (sensor_msgs/CompressedImage, JPEG or PNG: image_transport's
+compressed transport, what cameras are usually recorded as); publishes `<stream>/reward`
 (inest_interfaces/Reward with the image's header), `<stream>/reward/total` (std_msgs/Float32) and
 `<stream>/reward/subtask` (std_msgs/Int32) for plotting tools; serves `<stream>/reset_reward`
 (std_srvs/Trigger: new episode, tracker reset, exploration memories kept); publishes /diagnostics
@@ -43,17 +45,19 @@ from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Float32, Int32
 from std_srvs.srv import Trigger
 
 from .runtime.config import RewardConfig
-from .runtime.images import RESIZE_MODES, ImageRejected, decode_image
+from .runtime.images import RESIZE_MODES, ImageRejected, decode_compressed, decode_image
 from .runtime.intrinsic import IntrinsicConfig
 from .runtime.model import DEFAULT_MODEL, TCC_SCHEMES, ModelError, encoder_digest, load_model
 from .runtime.reward_parts import message_fields
 from .runtime.rewards import RewardScorer
 from .runtime.serving import ScoredFrame, StreamScorer, ThrottledLog
+
+IMAGE_TRANSPORTS = ("raw", "compressed")
 
 
 @dataclass(frozen=True)
@@ -64,6 +68,9 @@ class RewardNodeConfig:
     streams: tuple[str, ...] = ("",)  # namespaces of the image sources, e.g. ["sim0", "sim1"]
     image_topic: str = "camera/ego/image_raw"
     stage_image_topic: str = "camera/allo/image_raw"  # only for a stage head that reads a second camera
+    # raw: sensor_msgs/Image on the topics; compressed: sensor_msgs/CompressedImage (JPEG, PNG) on
+    # <topic>/compressed, image_transport's name for it
+    image_transport: str = "raw"
     max_batch: int = 32  # frames per forward pass at most
     # ms a flush waits for the other streams' frames: lockstep simulators' frames of one round
     # arrive within a millisecond or two, and one forward pass for all of them costs less than several
@@ -81,6 +88,8 @@ class RewardNodeConfig:
     def __post_init__(self) -> None:
         if self.resize not in RESIZE_MODES:
             raise ValueError(f"resize must be one of {RESIZE_MODES}, got {self.resize!r}")
+        if self.image_transport not in IMAGE_TRANSPORTS:
+            raise ValueError(f"image_transport must be one of {IMAGE_TRANSPORTS}, got {self.image_transport!r}")
         if not 1 <= self.min_image_size <= self.max_image_size:
             raise ValueError(
                 f"need 1 <= min_image_size <= max_image_size, got {self.min_image_size} and {self.max_image_size}"
@@ -129,17 +138,18 @@ class RewardNode(Node):
         self.streams = StreamScorer(scorer, config.max_pending, config.backward_stamps, self.log, config.max_batch)
         qos = QoSProfile(depth=10)
         self.reward_pubs, self.total_pubs, self.subtask_pubs = [], [], []
+        message, suffix = (Image, "") if config.image_transport == "raw" else (CompressedImage, "/compressed")
         for index, namespace in enumerate(config.streams):
             self.create_subscription(
-                Image,
-                namespaced(namespace, config.image_topic),
+                message,
+                namespaced(namespace, config.image_topic) + suffix,
                 lambda msg, i=index: self.on_image(i, msg),
                 QoSProfile(depth=config.queue_depth),
             )
             if scorer.stage_camera is not None:
                 self.create_subscription(
-                    Image,
-                    namespaced(namespace, config.stage_image_topic),
+                    message,
+                    namespaced(namespace, config.stage_image_topic) + suffix,
                     lambda msg, i=index: self.on_image(i, msg, stage=True),
                     QoSProfile(depth=config.queue_depth),
                 )
@@ -203,15 +213,17 @@ class RewardNode(Node):
             f"episodes carry on at their stage, novelty memories {memories}"
         )
 
-    def on_image(self, stream: int, msg: Image, stage: bool = False) -> None:
+    def on_image(self, stream: int, msg: Image | CompressedImage, stage: bool = False) -> None:
         """A frame of the encoder's camera, or (`stage`) of the stage head's second camera."""
         received = time.perf_counter()
         config, size = self.config, self.streams.scorer.image_size
+        bounds = (size, config.resize, config.min_image_size, config.max_image_size)
         try:
-            frame = decode_image(
-                msg.encoding, msg.height, msg.width, msg.step, msg.data,
-                size, config.resize, config.min_image_size, config.max_image_size,
-            )  # fmt: skip
+            if isinstance(msg, CompressedImage):
+                frame, height, width = decode_compressed(msg.format, msg.data, *bounds)
+            else:
+                frame = decode_image(msg.encoding, msg.height, msg.width, msg.step, msg.data, *bounds)
+                height, width = msg.height, msg.width
         except ImageRejected as error:
             self.streams.reject(error.kind, f"stream {stream}{' stage camera' if stage else ''}: {error}")
         else:
@@ -219,10 +231,10 @@ class RewardNode(Node):
             if stage:
                 self.streams.submit_stage(stream, stamp, frame, received)
             else:
-                if msg.height != msg.width:
+                if height != width:
                     self.log.once(
-                        f"aspect:{msg.width}x{msg.height}",
-                        f"{msg.width}x{msg.height} frames: "
+                        f"aspect:{width}x{height}",
+                        f"{width}x{height} frames: "
                         + ("centre-cropped to the training camera's square" if config.resize == "crop" else "squashed")
                         + f", then resized to {size}x{size} (resize:={config.resize})",
                         "info",

@@ -207,7 +207,10 @@ def collect_dataset(
     if needed <= 0:
         _save_progress(root, metadata, collect)
         return metadata
-    context = multiprocessing.get_context("spawn" if sys.platform == "darwin" else "fork")
+    # workers forked from a fresh server process, never from this one: a fork of a process whose
+    # other threads (PyTorch's, JAX's, OpenCV's pools) hold a lock left a worker waiting forever
+    # on it (seen once in the test suite); Python 3.14 makes forkserver Linux's default for that reason
+    context = multiprocessing.get_context("spawn" if sys.platform == "darwin" else "forkserver")
     with (
         context.Pool(collect.workers, _init_worker, (env_config, expert, root)) as pool,
         track(

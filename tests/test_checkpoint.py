@@ -15,6 +15,7 @@ from inest_agent_node.checkpoint import (
     read_manifest,
     write_checkpoint,
 )
+from inest_agent_node.train import check_resume
 from inest_common.files import NoSpaceError, RunFileError, out_of_space
 
 
@@ -75,3 +76,20 @@ def test_a_file_of_another_size_than_its_manifest_s_makes_the_checkpoint_unreada
     (tmp_path / CHECKPOINT_DIR / "a").write_text("12345")
     with pytest.raises(RunFileError, match="is not whole: b is missing"):
         read_manifest(tmp_path / CHECKPOINT_DIR)
+
+
+def test_a_file_changed_in_place_makes_the_checkpoint_unreadable(tmp_path):
+    write_checkpoint(tmp_path, writer(a="12345"), {"steps": 10})
+    (tmp_path / CHECKPOINT_DIR / "a").write_text("12346")  # same size, one byte changed
+    with pytest.raises(RunFileError, match="is damaged: a is not the file its manifest's sha256 names"):
+        read_manifest(tmp_path / CHECKPOINT_DIR)
+
+
+def test_checkpoint_files_without_a_manifest_are_neither_resumed_nor_started_over(tmp_path):
+    (tmp_path / "config.json").write_text("{}")
+    write_checkpoint(tmp_path, writer(a="saved"), {"steps": 10})
+    (tmp_path / CHECKPOINT_DIR / "checkpoint.json").unlink()
+    for resume, start_over in ((True, False), (False, True)):
+        with pytest.raises(RunFileError, match="holds checkpoint files but no manifest"):
+            check_resume(tmp_path, resume, start_over)
+    assert (tmp_path / CHECKPOINT_DIR / "a").read_text() == "saved"

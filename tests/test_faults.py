@@ -21,6 +21,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import ament_index_python.packages
+import numpy as np
 import pytest
 import rclpy
 import yaml
@@ -31,7 +32,7 @@ from inest_agent_node.train import Trainer, new_learner, restore_learner
 from inest_bringup.launcher import graph_environment, resuming_agent
 from inest_bringup.monitor import GraphMonitor
 from inest_bringup.supervisor import TRAINING_NICENESS, Outcome, RespawnPolicy, Supervisor, training_cpus
-from inest_common.files import NO_SPACE_EXIT, RunFileError
+from inest_common.files import NO_SPACE_EXIT, RunFileError, sha256_of
 from inest_interfaces.msg import EpisodeStatus, Reward
 from inest_reward_node.runtime.serving import StreamScorer
 from rclpy.duration import Duration
@@ -118,11 +119,16 @@ def test_bad_launcher_settings_and_usage_mistakes_are_one_line_and_exit_2(tmp_pa
         (["--steps"], ["argument --steps: expected one argument"]),
         (["--sims", "two"], ["argument --sims: invalid int value: 'two'"]),
         (["--discovery", "lan"], ["argument --discovery: invalid choice: 'lan'"]),
+        (["--domain-id", "300"], ["--domain-id must be in 0..232 (ROS 2's DDS port range), got 300"]),
+        (["--domain-id", "-1"], ["--domain-id must be in 0..232"]),
     ]
     out = tmp_path / "graph"
     started = [(start(tmp_path, "inest-launch", "--out", str(out), *args), expected) for args, expected in cases]
+    (tmp_path / "afile").write_text("")
+    a_file = start(tmp_path, "inest-launch", "--out", str(tmp_path / "afile"))
     for process, expected in started:
         assert_launch_refused(process, out, *expected)
+    assert_launch_refused(a_file, tmp_path / "afile", f"--out {tmp_path / 'afile'} is a file, not a folder")
     assert not out.exists()
 
 
@@ -133,6 +139,10 @@ def test_the_launcher_refuses_what_its_agent_or_reward_node_would_before_startin
     come from the launcher's check."""
     held = tmp_path / "held"  # a run folder whose agent/ holds a run
     shutil.copytree(saved_run / "run", held / "agent")
+    damaged = tmp_path / "damaged"  # ... and one whose checkpoint lost a byte of its learner's weights
+    shutil.copytree(saved_run / "run", damaged / "agent")
+    weights = damaged / "agent" / "checkpoint" / "learner.safetensors"
+    weights.write_bytes(weights.read_bytes()[:-1] + b"\x00")
     policy, model, streams = tmp_path / "policy", tmp_path / "model", tmp_path / "streams"
     evaluate = ["--param", "agent:mode:=evaluate", "--param", "agent:policy:=/nonexistent"]
     cases = [  # (run folder, arguments, what the line says)
@@ -141,6 +151,7 @@ def test_the_launcher_refuses_what_its_agent_or_reward_node_would_before_startin
         (held, ["--resume"], f"inest-agent-node: cannot resume {held / 'agent'}: settings differ from the saved run"),
         (model, ["--param", "agent:model:=/nowhere"], "inest-agent-node: no reward model at /nowhere"),
         (streams, ["--param", "reward:streams:=[]"], "-p 'streams:=[]': ROS cannot pass an empty list"),
+        (damaged, ["--resume"], f"checkpoint {damaged / 'agent' / 'checkpoint'} is damaged: learner.safetensors"),
     ]
     before = sorted(path.relative_to(held) for path in held.rglob("*"))
     started = [(start(tmp_path, "inest-launch", "--out", str(out), *args), out, line) for out, args, line in cases]
@@ -160,12 +171,17 @@ def saved_run(tmp_path_factory):
     return root
 
 
-def damaged_copy(saved_run: Path, tmp_path: Path, name: str, damage) -> Path:
-    """A copy of the saved run with checkpoint/`name` damaged by `damage(bytes) -> bytes`."""
-    run = tmp_path / name.replace(".", "_")
+def damaged_copy(saved_run: Path, tmp_path: Path, name: str, damage, rehash: bool = True) -> Path:
+    """A copy of the saved run with checkpoint/`name` damaged by `damage(bytes) -> bytes`;
+    `rehash`: its manifest's sha256 made the damaged file's, so that its reader meets the damage."""
+    run = tmp_path / (name.replace(".", "_") + ("" if rehash else "_unhashed"))
     subprocess.run(["cp", "-r", saved_run / "run", run], check=True)
     path = run / "checkpoint" / name
     path.write_bytes(damage(path.read_bytes()))
+    if rehash:
+        manifest = json.loads((run / "checkpoint" / "checkpoint.json").read_text())
+        manifest["sha256"][name] = sha256_of(path)
+        (run / "checkpoint" / "checkpoint.json").write_text(json.dumps(manifest))
     return run
 
 
@@ -179,10 +195,12 @@ def test_corrupt_run_files_and_an_empty_resume_are_one_line_and_exit_2(saved_run
         "learner.safetensors": damaged_copy(saved_run, tmp_path, "learner.safetensors", garble),
     }
     truncated = damaged_copy(saved_run, tmp_path, "diagnostics.json", lambda data: data[: len(data) // 2])
+    flipped = damaged_copy(saved_run, tmp_path, "learner.safetensors", garble, rehash=False)
     before = {name: (run / "checkpoint" / name).read_bytes() for name, run in runs.items()}
     config = str(saved_run / "train.yaml")
-    trains = {
-        name: start(tmp_path, "inest-train", "--out", str(run), "--config", config, "--resume")
+    configs = {name: (run / "config.json").read_text() for name, run in runs.items()}
+    trains = {  # another total_steps: a refused resume must not rewrite config.json with it
+        name: start(tmp_path, "inest-train", "--out", str(run), "--config", config, "--resume", "--total-steps", "500")
         for name, run in runs.items()
     }
     empty = start(tmp_path, "inest-train", "--out", str(tmp_path / "never-ran"), "--config", config, "--resume")
@@ -191,9 +209,12 @@ def test_corrupt_run_files_and_an_empty_resume_are_one_line_and_exit_2(saved_run
         tmp_path, "inest-agent-node", "--ros-args", "-p", "resume:=true", "-p", f"out:={tmp_path / 'no-agent-run'}"
     )
     partial = start(tmp_path, "inest-train", "--out", str(truncated), "--config", config, "--resume")
+    unhashed = start(tmp_path, "inest-train", "--out", str(flipped), "--config", config, "--resume")
     for name, process in trains.items():
         assert_refused(process, "inest-train: cannot read", str(runs[name] / "checkpoint" / name))
         assert (runs[name] / "checkpoint" / name).read_bytes() == before[name]  # nothing saved is lost
+        assert (runs[name] / "config.json").read_text() == configs[name]
+    assert_refused(unhashed, f"checkpoint {flipped / 'checkpoint'} is damaged: learner.safetensors is not the file")
     assert_refused(partial, f"checkpoint {truncated / 'checkpoint'} is not whole: diagnostics.json is")
     assert_refused(empty, f"nothing to resume in {tmp_path / 'never-ran'}")
     assert_refused(bare, f"nothing to resume in {tmp_path / 'never-ran'}")  # not "the reward needs a model"
@@ -300,6 +321,8 @@ def test_a_killed_run_resumes_from_a_timed_checkpoint_and_one_without_a_checkpoi
     process.communicate()
     steps = json.loads(info.read_text())["steps"]
     assert 0 < steps < 100_000  # written by the clock, long before the first checkpoint_every
+    with np.load(run / "checkpoint" / "replay_buffer.npz") as replay:  # every step counted is stored
+        assert int(replay["pos"]) * config["num_envs"] == steps
     assert_refused(start(tmp_path, *train, "--start-over"), f"{run} has a checkpoint at step {steps}: resume it")
     resumed = start(tmp_path, *train, "--resume", "--total-steps", str(steps + 8))
     assert resumed.communicate(timeout=120)[0] and resumed.returncode == 0

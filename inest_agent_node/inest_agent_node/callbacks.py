@@ -151,22 +151,28 @@ class RefitCallback(BaseCallback):
 
 class CheckpointCallback(BaseCallback):
     """Periodic `Trainer.save_checkpoint()`, the `--resume` point (unlike stable-baselines3's own
-    CheckpointCallback it also writes the replay buffer, history, diagnostics and novelty memories,
-    each replacing the last one)."""
+    CheckpointCallback it also writes the replay buffer, history, diagnostics and novelty memories).
+    A due checkpoint is written at the rollout's end: stable-baselines3 calls `on_step` before it
+    stores the step's transition and `on_rollout_end` after, so a checkpoint written in `on_step`
+    counted a step whose transition it lacked, and each resume lost one replay row."""
 
     def __init__(self, trainer: Trainer) -> None:
         super().__init__()
         self.trainer = trainer
         self.last = time.monotonic()
+        self.due = False
 
     def _on_step(self) -> bool:
         config = self.trainer.config
         late = time.monotonic() - self.last >= config.checkpoint_minutes * 60
-        if late or due(self.num_timesteps, config.checkpoint_every, config.num_envs):
-            size = self.trainer.save_checkpoint()
-            self.last = time.monotonic()
-            tqdm.write(f"checkpoint at step {self.num_timesteps}: {size / 2**20:.1f} MB in {self.trainer.run_dir}")
+        self.due = self.due or late or due(self.num_timesteps, config.checkpoint_every, config.num_envs)
         return True
+
+    def _on_rollout_end(self) -> None:
+        if self.due:
+            size = self.trainer.save_checkpoint()
+            self.last, self.due = time.monotonic(), False
+            tqdm.write(f"checkpoint at step {self.num_timesteps}: {size / 2**20:.1f} MB in {self.trainer.run_dir}")
 
 
 def training_callbacks(trainer: Trainer) -> CallbackList:

@@ -7,8 +7,9 @@ Here the folder `checkpoint/` always holds one checkpoint: `.checkpoint.partial/
 (and flushed) first, the old folder steps aside as `.checkpoint.previous/`, the new one takes its
 name and the old one is deleted. A crash between the two renames leaves `.checkpoint.previous/`,
 which is then the checkpoint. The manifest (checkpoint.json: step, training seconds, each file's
-size) is written last, so a folder without it is not a checkpoint, and a file whose size differs
-from the manifest's makes the checkpoint unreadable rather than half read.
+size and sha256) is written last, so a folder without it is not a checkpoint, and a file whose
+size or content differs from the manifest's makes the checkpoint unreadable rather than half read
+(a flipped byte in the learner's weights would otherwise train on, or fail far from its cause).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from inest_common.files import NoSpaceError, RunFileError, out_of_space, read_json, read_run_file
+from inest_common.files import NoSpaceError, RunFileError, out_of_space, read_json, read_run_file, sha256_of
 
 CHECKPOINT_DIR = "checkpoint"
 # the manifest: the checkpoint's step, its size in bytes, the training seconds up to it
@@ -40,13 +41,15 @@ def checkpoint_folder(run_dir: Path) -> Path | None:
 
 
 def read_manifest(folder: Path) -> dict[str, Any]:
-    """The checkpoint's manifest, once every file it lists is there with its size."""
+    """The checkpoint's manifest, once every file it lists is there with its size and sha256."""
     manifest = read_run_file(folder / CHECKPOINT_INFO, read_json)
     for name, size in manifest.get("files", {}).items():
         path = folder / name
         if not path.is_file() or path.stat().st_size != size:
             found = f"{path.stat().st_size} bytes" if path.is_file() else "missing"
             raise RunFileError(f"checkpoint {folder} is not whole: {name} is {found}, its manifest says {size} bytes")
+        if name in manifest.get("sha256", {}) and sha256_of(path) != manifest["sha256"][name]:
+            raise RunFileError(f"checkpoint {folder} is damaged: {name} is not the file its manifest's sha256 names")
     return manifest
 
 
@@ -59,8 +62,10 @@ def write_checkpoint(run_dir: Path, write_files: Callable[[Path], None], info: d
     try:
         partial.mkdir(parents=True)
         write_files(partial)
-        files = {path.name: path.stat().st_size for path in sorted(partial.iterdir())}
-        manifest = {**info, "bytes": sum(files.values()), "files": files}
+        paths = sorted(partial.iterdir())
+        files = {path.name: path.stat().st_size for path in paths}
+        hashes = {path.name: sha256_of(path) for path in paths}
+        manifest = {**info, "bytes": sum(files.values()), "files": files, "sha256": hashes}
         (partial / CHECKPOINT_INFO).write_text(json.dumps(manifest) + "\n")
         flush(partial)
     except Exception as error:

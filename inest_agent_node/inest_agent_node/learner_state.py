@@ -91,6 +91,13 @@ def load_learner_state(model: Any, learner: str, folder: Path) -> None:
         with unreadable_as_run_file_error(folder / JAX_FILE, UnpackException):
             states = read_run_file(folder / JAX_FILE, restore)
         states = jax.tree_util.tree_map(jax.numpy.asarray, states)  # msgpack gives numpy arrays back
+        shapes = zip(jax.tree_util.tree_leaves_with_path(template), jax.tree_util.tree_leaves(states), strict=True)
+        for (where, expected), found in shapes:
+            if jax.numpy.shape(expected) != jax.numpy.shape(found):
+                raise RunFileError(
+                    f"{folder / JAX_FILE} holds {jax.tree_util.keystr(where)} of shape {jax.numpy.shape(found)}, "
+                    f"this run's learner {jax.numpy.shape(expected)}: saved with other settings"
+                )
         for name, path in _JAX_STATES.items():
             owner, _, attribute = path.rpartition(".")
             setattr(operator.attrgetter(owner)(model) if owner else model, attribute, states[name])

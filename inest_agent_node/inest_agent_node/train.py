@@ -37,7 +37,7 @@ from inest_common.files import (
 from inest_common.settings import OneLineParser, add_setting_flags
 from inest_reward_node.learning.coverage import measure_coverage, plot_coverage
 from inest_reward_node.learning.labelled_rollouts import RolloutLabelling
-from inest_reward_node.learning.runs import CONFIG_FILE, merge_settings, prepare_run_dir
+from inest_reward_node.learning.runs import CONFIG_FILE, check_run_dir, merge_settings, prepare_run_dir
 from inest_reward_node.learning.self_negatives import SelfNegatives
 from inest_reward_node.learning.stage_refit import REFIT_MODEL_DIR, StageRefit
 from inest_reward_node.runtime.model import ModelError, load_model
@@ -49,7 +49,7 @@ from .checkpoint import CHECKPOINT_DIR, CHECKPOINT_INFO, checkpoint_folder, read
 from .config import TrainConfig, setting_defaults
 from .envs import ConcurrentUpdatesVecEnv, RewardVecEnv, build_env
 from .evaluate import TEST, VALIDATION, EvalResult, Layouts, evaluate_vec_env, format_table, plot_learning_curve
-from .learner_state import load_learner_state, save_learner_state
+from .learner_state import load_learner_state, refuse_model_zip, save_learner_state
 from .learners import (
     OverlappedUpdatesMixin,
     RewardBatchingMixin,
@@ -122,7 +122,7 @@ class Trainer:
         # [steps, self negative frames, labelled episodes] of each stage classifier refit
         self.refits: list[list[int]] = []
         self.stage_refit = self.build_stage_refit()
-        self.check_run_dir(resume or start_over, start_over)  # written only once the models and envs load
+        self.prepare_run_dir(resume or start_over, start_over, write=False)  # refusals before the learner is built
         if config.learner.startswith("sbx"):
             configure_jax_threads(config.threads)
         batching = not overlap_updates and self.reward_env is not None and self.reward_env.batch_steps > 1
@@ -152,6 +152,7 @@ class Trainer:
             if self.stage_refit is not None and (checkpoint / SELF_NEGATIVES_FILE).exists():
                 # without them the next refit would forget what the earlier ones pushed down
                 self.stage_refit.self_negatives.restore(read_run_file(checkpoint / SELF_NEGATIVES_FILE, read_npz))
+        self.prepare_run_dir(resume or start_over, start_over)  # config.json once the checkpoint has loaded
         if overlap_updates:
             waiting_hook_owner(self.env).while_waiting = self.model.run_pending_updates
 
@@ -186,9 +187,11 @@ class Trainer:
             return evaluate_vec_env(self.eval_env, exported(self.model, self.config).predict, episodes, on)
         return evaluate_vec_env(self.eval_env, deterministic(self.model), episodes, on)
 
-    def check_run_dir(self, overwrite: bool, start_over: bool) -> None:
+    def prepare_run_dir(self, overwrite: bool, start_over: bool, write: bool = True) -> None:
+        """Refuse a run folder this run may not use; `write`: then write its config.json."""
         must_match = self.config.settings_that_matter(start_over)
-        prepare_run_dir(self.run_dir, self.config.to_dict(), overwrite, must_match, setting_defaults())
+        prepare = prepare_run_dir if write else check_run_dir
+        prepare(self.run_dir, self.config.to_dict(), overwrite, must_match, setting_defaults())
 
     def save_checkpoint(self) -> int:
         """Learner state, replay buffer, history, diagnostics and novelty memories as one
@@ -304,11 +307,19 @@ def new_learner(algorithm: type, config: TrainConfig, env: VecEnv, tensorboard_l
 def restore_learner(model: Any, learner: str, run_dir: Path) -> Path:
     """Load the state of the run's checkpoint into `model` (new_learner's, of the run's settings);
     returns the checkpoint folder. RunFileError when there is none or it is not whole."""
+    checkpoint = check_checkpoint(run_dir)
+    load_learner_state(model, learner, checkpoint)
+    return checkpoint
+
+
+def check_checkpoint(run_dir: Path) -> Path:
+    """The run's checkpoint folder, once it is whole (its manifest's sizes and hashes) and holds no
+    stable-baselines3 model.zip; RunFileError otherwise. Cheap enough for a launcher's check."""
     checkpoint = checkpoint_folder(run_dir)
     if checkpoint is None:
         raise RunFileError(f"{run_dir} holds no checkpoint ({CHECKPOINT_DIR}/{CHECKPOINT_INFO})")
+    refuse_model_zip(checkpoint / "model.zip")
     read_manifest(checkpoint)
-    load_learner_state(model, learner, checkpoint)
     return checkpoint
 
 
@@ -337,12 +348,20 @@ def continuation_flags(run_dir: Path) -> list[str]:
 
 
 def check_resume(run_dir: Path, resume: bool, start_over: bool) -> None:
-    """Refuse, before anything loads or is written, a resume with nothing to continue (never
-    silently from step 0), and a start-over that would throw a checkpoint away."""
+    """Refuse, before anything loads or is written, a resume with nothing (whole) to continue (never
+    silently from step 0), and a start-over that would throw a checkpoint, or its files, away."""
     if resume and start_over:
         raise ValueError("resume and start over exclude each other")
     if resume and not (run_dir / CONFIG_FILE).is_file():
         raise RunFileError(f"nothing to resume in {run_dir}: it holds no earlier run ({CONFIG_FILE})")
+    unfinished = run_dir / CHECKPOINT_DIR
+    if not has_checkpoint(run_dir) and unfinished.is_dir() and any(unfinished.iterdir()):
+        raise RunFileError(
+            f"{unfinished} holds checkpoint files but no manifest ({CHECKPOINT_INFO}, written last): they are "
+            f"not a whole checkpoint, and nothing is started over on them; move {unfinished} away to start over"
+        )
+    if resume and has_checkpoint(run_dir):
+        check_checkpoint(run_dir)  # a damaged one is refused before anything starts
     if resume and not has_checkpoint(run_dir):
         raise RunFileError(
             f"nothing to resume in {run_dir}: the run stopped before its first checkpoint; "

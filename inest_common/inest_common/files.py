@@ -57,7 +57,8 @@ def read_run_file(path: Path, read: Callable[[Path], T]) -> T:
     try:
         return read(path)
     except UNREADABLE as reason:
-        raise RunFileError(f"cannot read {path}: {reason or type(reason).__name__}") from reason
+        first_line = str(reason).strip().splitlines()[0] if str(reason).strip() else type(reason).__name__
+        raise RunFileError(f"cannot read {path}: {first_line}") from reason
 
 
 def checkout_relative(value: Any, root: Path) -> Any:

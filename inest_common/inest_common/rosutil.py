@@ -18,6 +18,7 @@ import rclpy
 import yaml
 from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import NameValidationException
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -37,8 +38,14 @@ def ns_stamp(nanoseconds: int) -> Time:
 
 
 def namespaced(namespace: str, name: str) -> str:
-    """`name` under `namespace`, still relative (so the node's own namespace applies on top)."""
-    return f"{namespace.strip('/')}/{name}" if namespace.strip("/") else name
+    """`name` under `namespace`, still relative (so the node's own namespace applies on top); an
+    absolute `name` stays as it is only outside any namespace (ValueError otherwise: every stream
+    would read the same topic)."""
+    if not namespace.strip("/"):
+        return name
+    if name.startswith("/"):
+        raise ValueError(f"topic {name} is absolute: under stream {namespace} give it relative (without the leading /)")
+    return f"{namespace.strip('/')}/{name}"
 
 
 class ParameterError(ValueError):
@@ -182,6 +189,10 @@ def run_node(
         pass
     except config_errors as error:
         print(f"{program}: {error}", file=sys.stderr)
+        return 2
+    except NameValidationException as error:  # a topic, service or namespace name ROS refuses
+        reason, _, name = str(error).partition(":\n")
+        print(f"{program}: {reason}: {name.strip().splitlines()[0] if name.strip() else ''}", file=sys.stderr)
         return 2
     except Exception as error:
         if out_of_space(error):  # even under a SIGTERM: the checkpoint it was saving did not fit

@@ -35,6 +35,7 @@ import math
 import time
 from dataclasses import dataclass
 
+import cv2
 import rclpy
 import torch
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -131,6 +132,9 @@ class RewardNode(Node):
             raise ValueError("intrinsic.mode 'state' needs state vectors; the reward node only sees images")
         reward = declare_reward_config(self)
         self.config, self.intrinsic, self.reward_config = config, intrinsic, reward
+        # OpenCV's own warning per undecodable file ("PNG input buffer is incomplete") would bypass
+        # the rate-limited log below, whose rejection line says the same once per log period
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
         torch.set_num_threads(config.threads)
         scorer = self.new_scorer(config.model)
         self.model, self.encoder = config.model, encoder_digest(config.model)

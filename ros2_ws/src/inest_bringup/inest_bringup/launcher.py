@@ -34,6 +34,7 @@ from pathlib import Path
 
 from inest_agent_node.evaluate import EvalResult, format_table
 from inest_agent_node.train import EVALUATION_FILE, RESULTS_FILE, checkpoint_steps, continuation, has_checkpoint
+from inest_common.files import no_space_message, out_of_space, write_atomic
 from inest_common.rosutil import CHECK_ONLY_ENV
 from inest_common.settings import OneLineParser
 
@@ -215,6 +216,9 @@ def resuming_agent(run_dir: Path) -> Callable[[str, list[str]], list[str]]:
     return command
 
 
+MAX_DOMAIN_ID = 232  # the largest ROS_DOMAIN_ID whose DDS ports fit below 65535 (ROS 2's domain ID docs)
+
+
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = OneLineParser(
         prog="inest-launch", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -254,6 +258,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if args.sims < 1:
         parser.error("--sims must be at least 1")
+    if args.domain_id is not None and not 0 <= args.domain_id <= MAX_DOMAIN_ID:
+        parser.error(f"--domain-id must be in 0..{MAX_DOMAIN_ID} (ROS 2's DDS port range), got {args.domain_id}")
     if args.respawn < 0 or args.respawn_delay < 0:
         parser.error("--respawn and --respawn-delay must be >= 0")
     try:
@@ -277,6 +283,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     run_dir = Path(args.out)
+    if run_dir.exists() and not run_dir.is_dir():
+        print(f"inest-launch: --out {run_dir} is a file, not a folder", file=sys.stderr)
+        return 2
     try:
         commands = node_commands(args, run_dir)
     except (ValueError, FileNotFoundError) as error:
@@ -318,12 +327,23 @@ def main(argv: list[str] | None = None) -> int:
             print_results(run_dir / "agent")
     finally:
         stop(supervisor.processes)
-        monitor.plot(run_dir / "reward_trace.png")
+        trace = plot_trace(monitor, run_dir / "reward_trace.png")
         monitor.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
-    print(f"inest-launch: logs in {run_dir / 'logs'}, reward trace {run_dir / 'reward_trace.png'}")
+    print(f"inest-launch: logs in {run_dir / 'logs'}{trace}")
     return status
+
+
+def plot_trace(monitor, path: Path) -> str:
+    """Write the reward trace; a full disk (the graph may have stopped for it) is said, not raised."""
+    try:
+        write_atomic(path, lambda partial: monitor.plot(partial))
+    except OSError as error:
+        if not out_of_space(error):
+            raise
+        return f"; no reward trace: {no_space_message(error)}"
+    return f", reward trace {path}"
 
 
 if __name__ == "__main__":

@@ -171,7 +171,7 @@ class GraphMonitor(Node):
         import matplotlib.pyplot as plt
 
         figure = self.trace_figure()
-        figure.savefig(path, dpi=100)
+        figure.savefig(path, dpi=100, format="png")
         plt.close(figure)
 
     def trace_figure(self):

@@ -23,8 +23,6 @@ from __future__ import annotations
 import json
 import operator
 import zipfile
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -88,8 +86,7 @@ def load_learner_state(model: Any, learner: str, folder: Path) -> None:
         def restore(path: Path) -> Any:
             return serialization.from_bytes(template, path.read_bytes())
 
-        with unreadable_as_run_file_error(folder / JAX_FILE, UnpackException):
-            states = read_run_file(folder / JAX_FILE, restore)
+        states = read_run_file(folder / JAX_FILE, restore, (UnpackException,))
         states = jax.tree_util.tree_map(jax.numpy.asarray, states)  # msgpack gives numpy arrays back
         shapes = zip(jax.tree_util.tree_leaves_with_path(template), jax.tree_util.tree_leaves(states), strict=True)
         for (where, expected), found in shapes:
@@ -105,22 +102,12 @@ def load_learner_state(model: Any, learner: str, folder: Path) -> None:
         from safetensors import SafetensorError
         from safetensors.torch import load_file
 
-        with unreadable_as_run_file_error(folder / TORCH_FILE, SafetensorError):
-            tensors = read_run_file(folder / TORCH_FILE, load_file)
+        tensors = read_run_file(folder / TORCH_FILE, load_file, (SafetensorError,))
         read_run_file(folder / TORCH_FILE, lambda path: load_torch_state(model, tensors, document["optimisers"]))
     for name, value in document["counters"].items():
         setattr(model, name, int(value))
     if "pending_updates" in vars(model):
         model.pending_updates = [tuple(update) for update in document["pending_updates"]]
-
-
-@contextmanager
-def unreadable_as_run_file_error(path: Path, error: type[Exception]) -> Iterator[None]:
-    """A library's own error for a damaged file (safetensors', msgpack's) as one RunFileError naming it."""
-    try:
-        yield
-    except error as reason:
-        raise RunFileError(f"cannot read {path}: {reason or type(reason).__name__}") from reason
 
 
 def torch_state(model: Any) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:

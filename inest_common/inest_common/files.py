@@ -52,11 +52,12 @@ class RunFileError(ValueError):
     """A run's saved file cannot be read back; the message names it (a ValueError: a bad configuration)."""
 
 
-def read_run_file(path: Path, read: Callable[[Path], T]) -> T:
-    """`read(path)`, with any failure to read or parse the file turned into one RunFileError naming it."""
+def read_run_file(path: Path, read: Callable[[Path], T], library_errors: tuple[type[Exception], ...] = ()) -> T:
+    """`read(path)`, with any failure to read or parse the file (UNREADABLE, or the reading
+    library's own `library_errors`, such as safetensors') turned into one RunFileError naming it."""
     try:
         return read(path)
-    except UNREADABLE as reason:
+    except (*UNREADABLE, *library_errors) as reason:
         first_line = str(reason).strip().splitlines()[0] if str(reason).strip() else type(reason).__name__
         raise RunFileError(f"cannot read {path}: {first_line}") from reason
 

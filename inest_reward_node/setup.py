@@ -28,6 +28,8 @@ setup(
             "inest-pretrain = inest_reward_node.learning.pretrain:main",
             "inest-reward-quality = inest_reward_node.learning.quality:main",
             "inest-label-clips = inest_reward_node.learning.labels:main",
+            "inest-import-demos = inest_reward_node.recordings.import_demos:main",
+            "inest-label-demos = inest_reward_node.recordings.label_demos:main",
         ],
     },
 )

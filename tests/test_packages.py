@@ -69,6 +69,9 @@ ROSDEP_KEYS = {
     "mcap": "python3-mcap-pip",
     "mcap_ros2": "python3-mcap-ros2-support-pip",
     "ray": "python3-ray-pip",
+    "rosbags": "python3-rosbags-pip",
+    "pyarrow": "python3-pyarrow-pip",
+    "av": "python3-av-pip",
 }
 # imports no import statement shows: by name (learners.LEARNERS) or through another library
 INDIRECT_IMPORTS = {

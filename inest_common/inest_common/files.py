@@ -96,14 +96,22 @@ def write_atomic(path: Path, write: Any) -> None:
         temporary.unlink(missing_ok=True)
 
 
-def read_versioned_json(path: Path, fmt: str, version: int, what: str, error: type[Exception]) -> dict[str, Any]:
-    """Read a JSON document that declares its format; `error` names the problem if it does not parse or match."""
+def read_versioned_json(
+    path: Path, fmt: str, version: int | tuple[int, ...], what: str, error: type[Exception]
+) -> dict[str, Any]:
+    """Read a JSON document that declares its format (one of the `version`s it may be written in);
+    `error` names the problem if it does not parse or match."""
     if not path.is_file():
         raise error(f"no {what} at {path.parent}: {path.name} is missing")
     try:
         document = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as reason:
         raise error(f"corrupt {path}: {reason}") from reason
-    if not isinstance(document, dict) or document.get("format") != fmt or document.get("format_version") != version:
-        raise error(f"{path} is not an {fmt} v{version} {what}")
+    versions = version if isinstance(version, tuple) else (version,)
+    if (
+        not isinstance(document, dict)
+        or document.get("format") != fmt
+        or document.get("format_version") not in versions
+    ):
+        raise error(f"{path} is not an {fmt} v{'/'.join(map(str, versions))} {what}")
     return document

@@ -6,6 +6,10 @@ Layout of a dataset folder:
                              sha256 of its arrays (`content_sha256`)
     episodes/seed_000042.npz  one episode (see `Episode` for the arrays inside)
 
+Version 2 holds a robot's recordings too (`inest-import-demos`): their episodes have one or two
+cameras and none of the simulator's arrays, and their subtask ends come from a person's label
+file (`inest-label-demos`), kept in `metadata.json` (`subtask_ends`) and applied on reading.
+
 Files are written atomically (temporary name, then rename), so an interrupted collection
 never leaves a half-written episode behind, and every read checks the recorded sha256 so
 a corrupt or truncated file is reported by name instead of feeding garbage to training.
@@ -21,60 +25,73 @@ from __future__ import annotations
 import hashlib
 import json
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from inest_common.files import read_versioned_json, sha256_of, write_atomic
 
-from .subtasks import SCHEMES
+from .subtasks import SCHEMES, labels_from_ends
 
 METADATA_FILE = "metadata.json"
 FORMAT = "inest-demonstrations"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)  # 1: simulator datasets before recordings could be imported
 SPLITS = ("train", "valid")
+VIEWS = ("ego", "allo")
 
 
 class DatasetError(RuntimeError):
     """A dataset file is missing, corrupt, or does not match its metadata."""
 
 
+OPTIONAL_ARRAYS = ("ego", "allo", "actions", "states", "rewards", "progress", "text", "timestamps")
+
+
 @dataclass
 class Episode:
-    """One demonstration. Frames: T + 1 (the reset frame, then one per action); actions: T."""
+    """One demonstration. Frames: T + 1 (the reset frame, then one per action); actions: T.
 
-    seed: int
-    ego: np.ndarray  # (T+1, S, S, 3) uint8, egocentric camera
-    allo: np.ndarray  # (T+1, S, S, 3) uint8, allocentric camera
-    actions: np.ndarray  # (T, 3) float32: speed, turn, grip in [-1, 1]
-    states: np.ndarray  # (T+1, D) float32, entries named by env.STATE_FIELDS
-    rewards: np.ndarray  # (T,) float32, the environment's dense oracle reward
-    progress: np.ndarray  # (T+1,) int8, correctly ordered blocks in the goal
-    labels: dict[int, np.ndarray]  # scheme -> (T+1,) int8 subtask label per frame
-    ends: dict[int, np.ndarray]  # scheme -> (scheme,) int32 frame index where each subtask ends
-    text: np.ndarray  # (T+1,) str, the thesis's 3-subtask description of each frame
+    A simulator episode has every array; a recorded one (`inest-import-demos`) has one or two
+    cameras and `timestamps`, and its progress and labels once its subtask ends are labelled."""
+
+    seed: int  # the layout seed; a recorded episode's number in its dataset
+    ego: np.ndarray | None  # (T+1, S, S, 3) uint8, egocentric camera
+    allo: np.ndarray | None  # (T+1, S, S, 3) uint8, allocentric camera
+    actions: np.ndarray | None = None  # (T, 3) float32: speed, turn, grip in [-1, 1]
+    states: np.ndarray | None = None  # (T+1, D) float32, entries named by env.STATE_FIELDS
+    rewards: np.ndarray | None = None  # (T,) float32, the environment's dense oracle reward
+    progress: np.ndarray | None = None  # (T+1,) int8, correctly ordered blocks in the goal
+    labels: dict[int, np.ndarray] = field(default_factory=dict)  # scheme -> (T+1,) int8 label per frame
+    ends: dict[int, np.ndarray] = field(default_factory=dict)  # scheme -> (scheme,) int32 frame each subtask ends on
+    text: np.ndarray | None = None  # (T+1,) str, the thesis's 3-subtask description of each frame
+    timestamps: np.ndarray | None = None  # (T+1,) float64 seconds since the first frame, recorded episodes
 
     def __len__(self) -> int:
-        return len(self.ego)
+        return len(self.ego if self.ego is not None else self.allo)
+
+    @property
+    def views(self) -> tuple[str, ...]:
+        return tuple(view for view in VIEWS if getattr(self, view) is not None)
 
     def frames(self, view: str) -> np.ndarray:
-        if view not in ("ego", "allo"):
+        if view not in VIEWS:
             raise ValueError(f"unknown view {view!r}; expected 'ego' or 'allo'")
-        return self.ego if view == "ego" else self.allo
+        frames = getattr(self, view)
+        if frames is None:
+            raise DatasetError(f"the demonstrations have no {view!r} camera (they hold {', '.join(self.views)})")
+        return frames
+
+    def with_subtask_ends(self, ends: list[int]) -> Episode:
+        """The episode cut into subtasks at `ends` (3 or 6 frames, see `labels_from_ends`)."""
+        progress, labels, scheme_ends = labels_from_ends(ends, len(self))
+        return replace(self, progress=progress, labels=labels, ends=scheme_ends)
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        arrays = {
-            "seed": np.int64(self.seed),
-            "ego": self.ego,
-            "allo": self.allo,
-            "actions": self.actions,
-            "states": self.states,
-            "rewards": self.rewards,
-            "progress": self.progress,
-            "text": self.text,
-        }
-        for scheme in SCHEMES:
+        arrays = {"seed": np.int64(self.seed)}
+        arrays.update({name: getattr(self, name) for name in OPTIONAL_ARRAYS if getattr(self, name) is not None})
+        for scheme in self.labels:
             arrays[f"labels_{scheme}"] = self.labels[scheme]
             arrays[f"ends_{scheme}"] = self.ends[scheme]
         return arrays
@@ -90,17 +107,12 @@ class Episode:
 
     @classmethod
     def from_arrays(cls, arrays: Any) -> Episode:
+        present = [s for s in SCHEMES if f"labels_{s}" in arrays]
         return cls(
             seed=int(arrays["seed"]),
-            ego=arrays["ego"],
-            allo=arrays["allo"],
-            actions=arrays["actions"],
-            states=arrays["states"],
-            rewards=arrays["rewards"],
-            progress=arrays["progress"],
-            labels={s: arrays[f"labels_{s}"] for s in SCHEMES},
-            ends={s: arrays[f"ends_{s}"] for s in SCHEMES},
-            text=arrays["text"],
+            **{name: arrays.get(name) for name in OPTIONAL_ARRAYS},
+            labels={s: arrays[f"labels_{s}"] for s in present},
+            ends={s: arrays[f"ends_{s}"] for s in present},
         )
 
 
@@ -143,7 +155,12 @@ def write_metadata(root: Path, metadata: dict[str, Any]) -> None:
 
 
 def read_metadata(root: Path) -> dict[str, Any]:
-    return read_versioned_json(root / METADATA_FILE, FORMAT, FORMAT_VERSION, "dataset", DatasetError)
+    return read_versioned_json(root / METADATA_FILE, FORMAT, READABLE_VERSIONS, "dataset", DatasetError)
+
+
+def episode_name(entry: dict[str, Any]) -> str:
+    """What a label file calls an episode: a recording's name, or a simulator episode's file stem."""
+    return entry.get("name") or Path(entry["file"]).stem
 
 
 class DemoDataset:
@@ -168,7 +185,29 @@ class DemoDataset:
         if not 0 <= index < len(entries):
             raise IndexError(f"{split} split has {len(entries)} episodes, no index {index}")
         entry = entries[index]
-        return read_episode(self.root / entry["file"], entry["sha256"])
+        episode = read_episode(self.root / entry["file"], entry["sha256"])
+        labelled = self.metadata.get("subtask_ends")
+        return episode.with_subtask_ends(labelled["ends"][episode_name(entry)]) if labelled else episode
+
+    def require_subtask_ends(self) -> None:
+        """Refuse recorded demonstrations nobody has cut into subtasks yet (a simulator's are cut)."""
+        if "subtask_ends" not in self.metadata and "collect" not in self.metadata["config"]:
+            raise DatasetError(
+                f"the demonstrations in {self.root} have no subtask ends: label them with inest-label-demos"
+            )
+
+    def segmented_by(self) -> str:
+        """Who cut the demonstrations into subtasks: what a model fitted on them records."""
+        labelled = self.metadata.get("subtask_ends")
+        if labelled is None:
+            return "dataset (the simulator's subtask ends)"
+        if labelled["labelled_by"] == "file":
+            rows = len(labelled["ends"]) * labelled["subtasks"]
+            return f"label file {Path(labelled['file']).name} ({rows} rows, sha256 {labelled['sha256'][:12]})"
+        return f"the recording's own subtask annotation ({labelled['labelled_by']})"
+
+    def names(self) -> list[str]:
+        return [episode_name(entry) for split in SPLITS for entry in self.entries(split)]
 
     def content_hash(self) -> str:
         """sha256 over every split's episodes (seed and content hash), the same for the same
@@ -179,6 +218,8 @@ class DemoDataset:
             for index, entry in enumerate(self.entries(split)):
                 content = entry.get("content_sha256") or self.load(split, index).content_sha256()
                 digest.update(f"{split}:{entry['seed']}:{content}\n".encode())
+        if "subtask_ends" in self.metadata:  # labelled by a person's file: the labels are part of the data
+            digest.update(json.dumps(self.metadata["subtask_ends"]["ends"], sort_keys=True).encode())
         return digest.hexdigest()
 
     def verify(self) -> None:

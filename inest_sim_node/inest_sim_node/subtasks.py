@@ -76,3 +76,26 @@ def subtask_labels(progress: np.ndarray, held: np.ndarray, scheme: int) -> tuple
         [int(np.argmax(done >= i + 1)) if done[-1] >= i + 1 else last for i in range(scheme)], dtype=np.int32
     )
     return labels, ends
+
+
+def labels_from_ends(ends: list[int], length: int) -> tuple[np.ndarray, dict[int, np.ndarray], dict[int, np.ndarray]]:
+    """A recorded demonstration of `length` frames, cut where a person says its subtasks end: its
+    ordered progress per frame and its labels and ends in every scheme those ends determine. Three
+    ends (one per block) give the 1- and 3-subtask schemes, six (per block: reached and grasped,
+    then pushed in) all three. The ends must rise strictly and lie on the episode's frames."""
+    ends_array = np.asarray(ends, dtype=np.int64)
+    num_blocks = len(BLOCK_COLOURS)
+    if len(ends_array) not in (num_blocks, 2 * num_blocks):
+        raise ValueError(f"{len(ends_array)} subtask ends; expected {num_blocks} or {2 * num_blocks}")
+    if np.any(np.diff(ends_array) <= 0) or ends_array[0] < 0 or ends_array[-1] >= length:
+        raise ValueError(f"subtask ends {ends_array.tolist()} must rise strictly within frames 0..{length - 1}")
+    pushed = ends_array if len(ends_array) == num_blocks else ends_array[1::2]
+    progress = (np.arange(length)[:, None] >= pushed[None, :]).sum(axis=1).astype(np.int8)
+    held = np.zeros(length, dtype=bool)  # grasped on the frame its reach/grasp subtask ends: enough to latch it
+    if len(ends_array) == 2 * num_blocks:
+        held[ends_array[0::2]] = True
+    schemes = SCHEMES if len(ends_array) == 2 * num_blocks else tuple(s for s in SCHEMES if s != 6)
+    labels, scheme_ends = {}, {}
+    for scheme in schemes:
+        labels[scheme], scheme_ends[scheme] = subtask_labels(progress, held, scheme)
+    return progress, labels, scheme_ends

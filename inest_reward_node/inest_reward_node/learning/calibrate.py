@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 from inest_common.progress import track
+from inest_sim_node.dataset import DatasetError
 
 from ..runtime.methods import subtask_rewards
 from ..runtime.model import ModelMetadata, RewardModel, SubtaskGoals, model_kind
@@ -153,6 +154,10 @@ def calibrate(
         stage_head_episodes(config, demos, plays + others) if calibration.stage_head.iterations else ([], [])
     )
     schemes = (config.reds.subtasks,) if config.method == "reds" else model_kind(config.method).schemes
+    labelled = set.intersection(*(set(demo.ends) for demo in demos))  # a person's file cuts 3 or 6 subtasks
+    if not labelled.intersection(schemes):
+        raise DatasetError(f"the demonstrations are cut into {sorted(labelled)} subtasks; this model needs {schemes}")
+    schemes = tuple(scheme for scheme in schemes if scheme in labelled)
     result = {}
     for scheme in schemes:
         ends = [demo.ends[scheme] for demo in demos]
@@ -245,7 +250,12 @@ def stage_head_episodes(config: PretrainConfig, demos: list[Demo], plays: list[C
     )
 
 
-def supervision(config: PretrainConfig, demonstrations: int) -> dict[str, object]:
+def supervision(
+    config: PretrainConfig,
+    demonstrations: int,
+    schemes: Sequence[int] = (1, 3, 6),
+    segmented_by: str = "dataset (the simulator's subtask ends)",
+) -> dict[str, object]:
     """What a model's calibration was fitted on, the labelling budget a robot user has to pay
     to fit the same (model.json `supervision`): the demonstrations and who segmented them into
     subtasks, every kind of labelled negative episode with its count and its labeller, and the
@@ -259,10 +269,10 @@ def supervision(config: PretrainConfig, demonstrations: int) -> dict[str, object
         episodes, labelled_by = clip_file_labels(path)
         negatives[f"clips:{path}"] = {"episodes": episodes, "labelled_by": labelled_by}
     head = calibration.stage_head
-    heads = calibration.stage_head_subtasks if head.iterations else ()
+    heads = [scheme for scheme in calibration.stage_head_subtasks if scheme in schemes] if head.iterations else []
     cameras = [config.view] + ([head.view] if heads and head.view not in (None, config.view) else [])
     return {
-        "demonstrations": {"episodes": demonstrations, "segmented_by": "dataset (the simulator's subtask ends)"},
+        "demonstrations": {"episodes": demonstrations, "segmented_by": segmented_by},
         "negatives": negatives,
         "labelled_episodes": sum(int(entry["episodes"]) for entry in negatives.values()),
         "simulator_labelled_episodes": sum(

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import torch
 from inest_common.progress import track
-from inest_sim_node.dataset import DemoDataset, Episode
+from inest_sim_node.dataset import DatasetError, DemoDataset, Episode
 
 from ..runtime.encoders import resize_frames
 from .task_stages import demo_stages
@@ -20,7 +20,7 @@ class Demo:
 
     seed: int
     frames: np.ndarray  # (T+1, S, S, 3) uint8 at the encoder's input size
-    rewards: np.ndarray  # (T,) the environment's dense reward
+    rewards: np.ndarray | None  # (T,) the environment's dense reward; None for a robot's recordings
     progress: np.ndarray  # (T+1,) ordered blocks in the goal
     labels: dict[int, np.ndarray]
     ends: dict[int, np.ndarray]
@@ -30,6 +30,8 @@ class Demo:
 
     @classmethod
     def from_episode(cls, episode: Episode, view: str, image_size: int) -> Demo:
+        if episode.progress is None:
+            raise DatasetError("the demonstrations have no subtask ends: label them with inest-label-demos")
         return cls(
             seed=episode.seed,
             frames=resize_frames(episode.frames(view), image_size),

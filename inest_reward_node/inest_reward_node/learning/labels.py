@@ -134,12 +134,14 @@ SHEET_COLUMNS = 10
 SHEET_TILE = 96  # pixels a frame is drawn at
 
 
-def write_sheets(folder: Path, episodes: list[np.ndarray]) -> None:
-    """episode_<i>.png per episode: its frames in rows of SHEET_COLUMNS, each with its number."""
+def write_sheets(folder: Path, episodes: list[np.ndarray], names: list[str] | None = None) -> None:
+    """<name>.png per episode (episode_<i> unless named): its frames in rows of SHEET_COLUMNS,
+    each with its number."""
     import cv2
 
     folder.mkdir(parents=True, exist_ok=True)
-    for index, frames in enumerate(episodes):
+    names = names or [f"episode_{index}" for index in range(len(episodes))]
+    for name, frames in zip(names, episodes, strict=True):
         tiles = []
         for number, frame in enumerate(frames):
             tile = cv2.resize(np.ascontiguousarray(frame), (SHEET_TILE, SHEET_TILE), interpolation=cv2.INTER_NEAREST)
@@ -148,7 +150,7 @@ def write_sheets(folder: Path, episodes: list[np.ndarray]) -> None:
             tiles.append(tile)
         tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % SHEET_COLUMNS)
         rows = [np.hstack(tiles[start : start + SHEET_COLUMNS]) for start in range(0, len(tiles), SHEET_COLUMNS)]
-        cv2.imwrite(str(folder / f"episode_{index}.png"), cv2.cvtColor(np.vstack(rows), cv2.COLOR_RGB2BGR))
+        cv2.imwrite(str(folder / f"{name}.png"), cv2.cvtColor(np.vstack(rows), cv2.COLOR_RGB2BGR))
 
 
 def main(argv: list[str] | None = None) -> int:

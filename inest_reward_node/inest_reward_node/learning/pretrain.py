@@ -63,6 +63,7 @@ def model_metadata(
 ) -> ModelMetadata:
     """A model's record; `demonstrations`: the training demonstrations it was calibrated on (0:
     not calibrated yet, no supervision record)."""
+    dataset = DemoDataset(config.dataset)
     return ModelMetadata(
         method=config.method,
         view=config.view,
@@ -71,10 +72,12 @@ def model_metadata(
         subtasks=subtasks,
         holdr=config.holdr if config.method == "holdr" else None,
         reds=config.reds if config.method == "reds" else None,
-        dataset={"path": str(config.dataset), "sha256": dataset_hash(config.dataset)},
+        dataset={"path": str(config.dataset), "sha256": dataset.content_hash()},
         training={"iterations": iterations_done, "config": config.to_dict()},
         calibration=config.calibration.to_dict(),
-        supervision=supervision(config, demonstrations) if demonstrations else {},
+        supervision=supervision(config, demonstrations, sorted(subtasks), dataset.segmented_by())
+        if demonstrations
+        else {},
     )
 
 
@@ -242,7 +245,8 @@ def pretrain(
     config: PretrainConfig, run_dir: str | Path, resume: bool = False, progress_bar: bool = True
 ) -> RewardModel:
     refuse_unfit_clips(config)
-    DemoDataset(config.dataset)  # a missing or unfinished dataset is refused before the run folder is written
+    # a missing, unfinished or unlabelled dataset is refused before the run folder is written
+    DemoDataset(config.dataset).require_subtask_ends()
     trainer = Pretrainer(config, run_dir, resume)
     train, valid = load_split(config, "train", progress_bar), load_split(config, "valid", progress_bar)
     if len(train) < 2:

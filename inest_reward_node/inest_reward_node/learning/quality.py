@@ -97,6 +97,8 @@ SETTLE_FRAMES = 10  # copies of a demonstration's last frame the tracker replay 
 def min_max(values: np.ndarray) -> np.ndarray:
     values = np.asarray(values, dtype=np.float64)
     span = values.max() - values.min()
+    if np.isnan(span):  # no environment reward (a robot's recording): undefined, not flat
+        return values
     return (values - values.min()) / span if span > 0 else np.zeros_like(values)
 
 
@@ -285,7 +287,9 @@ def demo_quality(
         np.concatenate([stages, np.repeat(stages[-1:], SETTLE_FRAMES)]),
     )
     played = Replay(settled.parts.select(slice(0, len(embeddings))), settled.num_subtasks)  # the scorer is causal
-    env = np.concatenate([demo.rewards[:1], demo.rewards]).astype(np.float64)
+    # a robot's recording has no environment reward: the metrics against it are undefined (null)
+    rewards = demo.rewards if demo.rewards is not None else np.full(len(demo) - 1, np.nan)
+    env = np.concatenate([rewards[:1], rewards]).astype(np.float64)
     goals = model.goals(scheme).goals
     ends = demo.ends[scheme]
     starts = subtask_starts(ends)

@@ -61,3 +61,4 @@ measure "$ROOT" "$OUT/reward_node_flood.json" reward_node_flood.py "$MODEL"
 measure "$ROOT" "$OUT/reward_node_cameras.json" reward_node_cameras.py "$MODEL"
 measure "$ROOT" "$OUT/graph_train_speed.json" graph_train_speed.py "$MODEL"
 measure "$ROOT" "$OUT/million_step_speed.json" million_step_speed.py "$(realpath results/long-horizon/reward-model-scene96)"
+measure "$ROOT" "$OUT/import_speed.json" import_speed.py

@@ -24,6 +24,7 @@ setup(
             "inest-sim-node = inest_sim_node.node:main",
             "inest-collect-demos = inest_sim_node.collect:main",
             "inest-export-video = inest_sim_node.video:main",
+            "inest-teleop-standin = inest_sim_node.teleop:main",
         ],
     },
 )

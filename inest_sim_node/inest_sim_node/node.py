@@ -2,7 +2,9 @@
 
 Publishes, all stamped with simulated time (one control period per step and per reset, so
 every observation has its own stamp): `camera/<view>/image_raw` (sensor_msgs/Image, rgb8) for
-each view in `cameras`, `episode_status` (inest_interfaces/EpisodeStatus, with the new state),
+each view in `cameras` (with `image_transport` "compressed", `camera/<view>/image_raw/compressed`
+instead: sensor_msgs/CompressedImage JPEG, as image_transport's compressed transport and most robot
+cameras send it), `episode_status` (inest_interfaces/EpisodeStatus, with the new state),
 `state` (inest_interfaces/State, while someone subscribes) and `/clock`. Subscribes to
 `action` (inest_interfaces/Action); serves `reset` (inest_interfaces/ResetEpisode).
 
@@ -22,6 +24,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from inest_common.rosutil import declare_dataclass, ns_stamp, run_node, stamp_ns
 from inest_interfaces.msg import Action, EpisodeStatus, State
@@ -29,13 +32,15 @@ from inest_interfaces.srv import ResetEpisode
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CompressedImage, Image
 from std_srvs.srv import Trigger
 
 from .config import VIEWS, EnvConfig
 from .env import SweepToTopEnv, validate_action
 
 MODES = ("lockstep", "realtime")
+IMAGE_TRANSPORTS = ("raw", "compressed")
+JPEG_QUALITY = 90
 REWARD_RESET_TIMEOUT_NS = 1_000_000_000  # a reward node that does not answer its reset by then is not waited for
 
 
@@ -47,10 +52,13 @@ class SimNodeConfig:
     seed: int = 0  # episode i (0, 1, ...) uses seed + i unless a reset asks for a seed
     max_steps: int = EnvConfig.max_steps
     publish_clock: bool = True  # one simulator per graph should own /clock
+    image_transport: str = "raw"  # "compressed": JPEG CompressedImage on <camera topic>/compressed
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"unknown mode {self.mode!r}; expected one of {MODES}")
+        if self.image_transport not in IMAGE_TRANSPORTS:
+            raise ValueError(f"unknown image_transport {self.image_transport!r}; expected one of {IMAGE_TRANSPORTS}")
         unknown = set(self.cameras) - set(VIEWS)
         if unknown or not self.cameras:
             raise ValueError(f"cameras must be a non-empty subset of {VIEWS}, got {list(self.cameras)}")
@@ -68,8 +76,10 @@ class SimNode(Node):
         self.env = SweepToTopEnv(config=EnvConfig(max_steps=config.max_steps))
         self.period_ns = round(1e9 / self.env.config.world.control_hz)
         qos = QoSProfile(depth=10)
+        compressed = config.image_transport == "compressed"
+        kind, suffix = (CompressedImage, "/compressed") if compressed else (Image, "")
         self.image_pubs = {
-            view: self.create_publisher(Image, f"camera/{view}/image_raw", qos) for view in config.cameras
+            view: self.create_publisher(kind, f"camera/{view}/image_raw{suffix}", qos) for view in config.cameras
         }
         self.state_pub = self.create_publisher(State, "state", qos)
         self.status_pub = self.create_publisher(EpisodeStatus, "episode_status", qos)
@@ -112,10 +122,8 @@ class SimNode(Node):
         stamp = ns_stamp(self.time_ns)
         outputs: list[tuple[object, object]] = []
         for view, publisher in self.image_pubs.items():
-            frame = self.env.render_camera(view, self.config.image_size)
-            image = Image(height=frame.shape[0], width=frame.shape[1], encoding="rgb8", step=frame.shape[1] * 3)
+            image = self.camera_message(self.env.render_camera(view, self.config.image_size))
             image.header.stamp, image.header.frame_id = stamp, f"{view}_camera"
-            image.data = frame.tobytes()
             outputs.append((publisher, image))
         self.state = state
         values = state.tolist()
@@ -139,6 +147,16 @@ class SimNode(Node):
             outputs.append((self.clock_pub, Clock(clock=stamp)))
         self.last_outputs = outputs
         self.publish_outputs()
+
+    def camera_message(self, frame: np.ndarray) -> Image | CompressedImage:
+        """An rgb8 Image, or the JPEG CompressedImage image_transport makes of it."""
+        if self.config.image_transport == "compressed":
+            bgr = cv2.cvtColor(frame, cv2.COLOR_RGB2BGR)
+            jpeg = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])[1]
+            return CompressedImage(format="rgb8; jpeg compressed bgr8", data=jpeg.tobytes())
+        image = Image(height=frame.shape[0], width=frame.shape[1], encoding="rgb8", step=frame.shape[1] * 3)
+        image.data = frame.tobytes()
+        return image
 
     def publish_outputs(self) -> None:
         """This step's messages; `state` only while someone listens (the agent reads the status)."""

@@ -2,7 +2,8 @@
 .mcap / .db3 files, `sensor_msgs/Image` or `sensor_msgs/CompressedImage` camera topics.
 
 One bag per demonstration, or one bag cut into episodes by a CSV file of `episode,start,end`
-rows (seconds since the bag's first message, what `ros2 bag info` and players show). Frames are
+rows: seconds since the bag's first message (what players show), or, from 1e9 on, seconds since
+the epoch on the recorder's clock (what a teleoperation tool logs beside the bag). Frames are
 placed in time by their header stamps (by the bag's receive times with `stamps="receive"`, or
 where a camera leaves its stamps zero). A bag is read twice: once for the stamps, once to
 decode only the frames the dataset's clock picks.
@@ -24,6 +25,7 @@ from .writer import RecordedEpisode, RecordingError
 
 IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
 STAMP_SOURCES = ("header", "receive")
+EPOCH_SECONDS = 1e9  # times from here on are since the epoch (2001-09-09), not since the bag's start
 
 
 def message_frame(message: object, size: int, resize: str) -> np.ndarray:
@@ -76,6 +78,10 @@ class Bag:
                 found = ", ".join(self.image_topics) or "none"
                 raise RecordingError(f"{path}: no Image or CompressedImage topic {topic!r} (image topics: {found})")
 
+    def receive_time(self, seconds: float) -> int:
+        """A times file's moment on the bag's receive clock (nanoseconds since the epoch)."""
+        return round(seconds * NANOSECONDS) + (0 if seconds >= EPOCH_SECONDS else self.start)
+
     def _messages(self, start: int | None = None, stop: int | None = None) -> Iterator[tuple[str, int, object]]:
         """(camera, receive time, message) in the bag's order, within [start, stop) receive times."""
         by_topic = {topic: view for view, topic in self.cameras.items()}
@@ -87,8 +93,7 @@ class Bag:
     def episode(
         self, name: str, rate: float, size: int, resize: str, span: tuple[float, float] | None
     ) -> RecordedEpisode:
-        start, stop = (None, None) if span is None else (self.start + round(span[0] * NANOSECONDS),
-                                                         self.start + round(span[1] * NANOSECONDS))  # fmt: skip
+        start, stop = (None, None) if span is None else (self.receive_time(span[0]), self.receive_time(span[1]))
         stamps: dict[str, list[int]] = {view: [] for view in self.cameras}
         for view, received, message in self._messages(start, stop):
             stamp = message.header.stamp.sec * NANOSECONDS + message.header.stamp.nanosec

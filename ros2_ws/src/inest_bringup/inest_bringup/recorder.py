@@ -1,7 +1,9 @@
 """`inest-record`: record the graph's reward topics to an MCAP file (a pip install has no `ros2 bag`).
 
 For every namespace in `--namespaces`: `reward`, `reward/total`, `reward/subtask` and
-`episode_status` (with `--images` also `camera/ego/image_raw` and `camera/allo/image_raw`), plus
+`episode_status` (with `--images` also `camera/ego/image_raw` and `camera/allo/image_raw`; with
+`--images --image-transport compressed` their `/compressed` topics, as a simulator with `image_transport`
+"compressed" or a robot camera sends them), plus
 `/diagnostics`. Messages are stored as published (CDR) with the complete ros2msg schemas, so
 Foxglove, PlotJuggler, `ros2 bag` and `mcap_ros2.reader.read_ros2_messages` decode them. Ctrl-C or
 SIGTERM ends the recording: what already reached this process is written and the file is closed;
@@ -24,13 +26,19 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.utilities import remove_ros_args
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Float32, Int32
 
 from .recording import McapRecording, RecordingError
 
 STREAM_TOPICS = {"reward": Reward, "reward/total": Float32, "reward/subtask": Int32, "episode_status": EpisodeStatus}
-IMAGE_TOPICS = {"camera/ego/image_raw": Image, "camera/allo/image_raw": Image}
+IMAGE_TOPICS = {
+    "raw": {"camera/ego/image_raw": Image, "camera/allo/image_raw": Image},
+    "compressed": {
+        "camera/ego/image_raw/compressed": CompressedImage,
+        "camera/allo/image_raw/compressed": CompressedImage,
+    },
+}
 GRAPH_TOPICS = {"/diagnostics": DiagnosticArray}
 QOS = QoSProfile(depth=100)  # reliable, like every publisher of the graph
 
@@ -43,7 +51,7 @@ def type_name(message_class: type) -> str:
 class RecorderNode(Node):
     def __init__(self, args: argparse.Namespace) -> None:
         super().__init__("inest_recorder")
-        per_stream = STREAM_TOPICS | (IMAGE_TOPICS if args.images else {})
+        per_stream = STREAM_TOPICS | (IMAGE_TOPICS[args.image_transport] if args.images else {})
         wanted = {namespaced(ns, name): kind for ns in args.namespaces for name, kind in per_stream.items()}
         topics = {self.resolve_topic_name(name): kind for name, kind in (wanted | GRAPH_TOPICS).items()}
         self.recording = McapRecording(
@@ -87,6 +95,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("file", type=Path, help="the MCAP file to write")
     parser.add_argument("--namespaces", nargs="+", default=["sim0"], help="simulator namespaces ('' for none)")
     parser.add_argument("--images", action="store_true", help="also record the camera images (large)")
+    parser.add_argument(
+        "--image-transport", choices=sorted(IMAGE_TOPICS), default="raw", help="with --images: which camera topics"
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace FILE if it exists")
     return parser.parse_args(argv)
 

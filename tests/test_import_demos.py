@@ -244,3 +244,39 @@ def test_bad_recordings_and_label_rows_are_one_line_each_and_write_nothing(simul
     assert (tmp_path / "out" / "metadata.json").read_bytes() == metadata
     assert pretrain_main([out, "--out", str(tmp_path / "run")]) == 2
     assert "no subtask ends: label them with inest-label-demos" in capsys.readouterr().err
+
+
+def test_a_session_recorded_over_the_graph_imports_as_the_takes_the_operator_kept(graph, tmp_path, capsys):
+    """The rehearsal's recording: a lockstep simulator node sending JPEG cameras, inest-record,
+    the teleoperation stand-in keeping two takes; the times file it writes cuts the bag into
+    exactly those takes, frame for frame as its own copy of the simulator saw them."""
+    import signal
+    import sys
+
+    graph.start("sim", "inest-sim-node", "--ros-args", "-r", "__ns:=/sim0", "-p", "mode:=lockstep",
+                "-p", "image_transport:=compressed", "-p", "max_steps:=150", "-p", "publish_clock:=false")  # fmt: skip
+    recorder = graph.start(
+        "record", sys.executable, "-m", "inest_bringup.recorder", str(tmp_path / "session.mcap"),
+        "--namespaces", "sim0", "--images", "--image-transport", "compressed",
+    )  # fmt: skip
+    times, ends = tmp_path / "times.csv", tmp_path / "ends.csv"
+    teleop = graph.start(
+        "teleop", "inest-teleop-standin", "--episodes", "2", "--times", str(times), "--ends", str(ends)
+    )
+    assert teleop.wait(120) == 0, graph.log("teleop") + graph.log("sim")
+    recorder.send_signal(signal.SIGINT)
+    assert recorder.wait(60) == 0, graph.log("record")
+    out = tmp_path / "imported"
+    cameras = [f"--camera={view}=/sim0/camera/{view}/image_raw/compressed" for view in ("ego", "allo")]
+    argv = [str(tmp_path / "session.mcap"), "--out", str(out), "--episode-times", str(times), *cameras]
+    assert import_demos.main([*argv, "--valid-fraction", "0.5"]) == 0, capsys.readouterr().err
+    dataset = DemoDataset(out)
+    assert dataset.names() == ["take_000", "take_001"]
+    true_ends = [line.split(",") for line in ends.read_text().splitlines()[1:]]
+    env = SweepToTopEnv(config=EnvConfig(max_steps=150))
+    for index, split in enumerate(("train", "valid")):
+        take = dataset.load(split, 0)
+        assert len(take) == int(true_ends[3 * index + 2][2]) + 1  # the take ends where its last block counts
+        env.reset(seed=int(graph.log("teleop").split(f"take_00{index}: seed ")[1].split(",")[0]))
+        assert mean_error(take.allo[0], env.render_camera("allo", 96)) < 3  # its first frame: the reset layout
+    env.close()

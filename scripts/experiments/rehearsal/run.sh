@@ -6,9 +6,10 @@
 # +-2 frames (labeller_standin.py), label, pretrain. Native arm: inest-collect-demos N (the
 # simulator's exact ends), pretrain with the same recipe. Both models are judged by
 # inest-reward-quality on the same 20 held-out simulator demonstrations (seeds from 5000, their
-# true ends) and the same random and wrong-order play. Each step's seconds go to steps.tsv.
+# true ends) and the same random and wrong-order play, 3 pretraining seeds per arm
+# (INEST_REHEARSAL_SEEDS). Each step's seconds go to steps.tsv.
 #   bash scripts/experiments/rehearsal/run.sh [OUT] [N]   # OUT default results/rehearsal, N 50
-# Work files (bag, datasets, runs) go to runs/rehearsal; about 50 minutes on 2 cores.
+# Work files (bag, datasets, runs) go to runs/rehearsal; about 15 minutes per pretraining on 2 cores.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../../.." && pwd)"
 cd "$ROOT"
@@ -44,15 +45,18 @@ timed label "$WORK/labelled.done" bash -c "'$BIN/inest-label-demos' '$WORK/impor
 timed collect-native "$WORK/native/metadata.json" "$BIN/inest-collect-demos" --out "$WORK/native" --episodes "$N"
 timed collect-heldout "$WORK/heldout/metadata.json" "$BIN/inest-collect-demos" --out "$WORK/heldout" --episodes 40 \
   --seed 5000 --valid-fraction 0.5
-for arm in robot native; do
-  data="$WORK/imported"
-  [ "$arm" = robot ] || data="$WORK/native"
-  timed "pretrain-$arm" "$WORK/pretrain-$arm/model/model.json" "$BIN/inest-pretrain" "$data" \
-    --out "$WORK/pretrain-$arm" "${RECIPE[@]}"
-  mkdir -p "$OUT/model-$arm"
-  cp "$WORK/pretrain-$arm/model/"* "$OUT/model-$arm/"
-  timed "quality-$arm" "$OUT/quality-$arm/summary.json" "$BIN/inest-reward-quality" "$OUT/model-$arm" \
-    "$WORK/heldout" --out "$OUT/quality-$arm" --schemes 3
+for seed in ${INEST_REHEARSAL_SEEDS:-0 1 2}; do
+  for arm in robot native; do
+    data="$WORK/imported"
+    [ "$arm" = robot ] || data="$WORK/native"
+    name="$arm-seed$seed"
+    timed "pretrain-$name" "$WORK/pretrain-$name/model/model.json" "$BIN/inest-pretrain" "$data" \
+      --out "$WORK/pretrain-$name" "${RECIPE[@]}" --seed "$seed" --stage-head-seed "$seed" --classifier-seed "$seed"
+    mkdir -p "$OUT/model-$name"
+    cp "$WORK/pretrain-$name/model/"* "$OUT/model-$name/"
+    timed "quality-$name" "$OUT/quality-$name/report.json" "$BIN/inest-reward-quality" "$OUT/model-$name" \
+      "$WORK/heldout" --out "$OUT/quality-$name" --schemes 3
+  done
 done
 cp "$WORK/session/times.csv" "$WORK/ends-labelled.csv" "$WORK/session/ends-true.csv" "$OUT/"
 "$BIN/python" scripts/experiments/rehearsal/summarise.py "$OUT"

@@ -16,6 +16,12 @@ ALLOWED = {
     "inest_reward_node.node": ("inest_common", "inest_reward_node.runtime"),
     "inest_reward_node.gym_wrapper": ("inest_reward_node.runtime",),
     "inest_reward_node.learning": ("inest_common", "inest_sim_node", "inest_reward_node.runtime"),
+    "inest_reward_node.recordings": (
+        "inest_common",
+        "inest_sim_node",
+        "inest_reward_node.runtime",
+        "inest_reward_node.learning",
+    ),
     "inest_agent_node": ("inest_common", "inest_sim_node", "inest_reward_node"),
     "inest_experiments": ("inest_common", "inest_sim_node", "inest_reward_node", "inest_agent_node"),
 }

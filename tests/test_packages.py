@@ -115,7 +115,8 @@ def test_docker_skips_the_keys_pip_installs():
     assert all(key in dockerfile for key in keys), sorted(key for key in keys if key not in dockerfile)
 
 
-ROS_ADAPTERS = {"node", "graph_env", "rosutil"}  # the only modules that may import rclpy
+# the only modules that may import rclpy (teleop: the stand-in operator, a node over the expert)
+ROS_ADAPTERS = {"node", "graph_env", "rosutil", "teleop"}
 
 
 @pytest.mark.parametrize("package", PACKAGES)

@@ -11,14 +11,13 @@ import shutil
 from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from importlib.metadata import version
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from inest_sim_node.dataset import FORMAT, FORMAT_VERSION, DatasetError, Episode, write_episode, write_metadata
 from inest_sim_node.subtasks import DESCRIPTIONS, SCHEMES, labels_from_ends
-
-from .. import __version__
 
 
 class RecordingError(ValueError):
@@ -108,7 +107,10 @@ def write_episodes(
         "format_version": FORMAT_VERSION,
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
         "config": record,
-        "versions": {"inest_reward_node": __version__, "python": platform.python_version(), "numpy": np.__version__},
+        "versions": {
+            "python": platform.python_version(),
+            **{library: version(library) for library in ("numpy", "rosbags", "pyarrow", "av")},
+        },
         "label_schemes": {str(s): list(DESCRIPTIONS[s]) for s in SCHEMES},
         "episodes": {"train": entries[:train], "valid": entries[train:]},
         "complete": True,

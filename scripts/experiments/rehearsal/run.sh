@@ -7,7 +7,8 @@
 # simulator's exact ends), pretrain with the same recipe. Both models are judged by
 # inest-reward-quality on the same 20 held-out simulator demonstrations (seeds from 5000, their
 # true ends) and the same random and wrong-order play, 3 pretraining seeds per arm
-# (INEST_REHEARSAL_SEEDS). Each step's seconds go to steps.tsv.
+# (INEST_REHEARSAL_SEEDS); the robot model is then served over the graph with JPEG cameras for a
+# short training run (serve/). Each step's seconds go to steps.tsv.
 #   bash scripts/experiments/rehearsal/run.sh [OUT] [N]   # OUT default results/rehearsal, N 50
 # Work files (bag, datasets, runs) go to runs/rehearsal; about 15 minutes per pretraining on 2 cores.
 set -euo pipefail
@@ -58,5 +59,14 @@ for seed in ${INEST_REHEARSAL_SEEDS:-0 1 2}; do
       "$WORK/heldout" --out "$OUT/quality-$name" --schemes 3
   done
 done
+# served: the robot model over the graph, the simulator sending JPEG cameras, a short training run
+SERVE=(.venv/bin/inest-launch --model "$OUT/model-robot-seed0" --sims 1 --steps 300 --out "$WORK/serve"
+  --param sim:image_transport:=compressed --param reward:image_transport:=compressed)
+if [ ! -f "$OUT/serve/launch.txt" ]; then
+  rm -rf "$WORK/serve"
+  mkdir -p "$OUT/serve"
+  { echo "# ${SERVE[*]}"; "${SERVE[@]}"; } >"$OUT/serve/launch.txt" 2>&1
+  cp "$WORK/serve/reward_trace.png" "$OUT/serve/"
+fi
 cp "$WORK/session/times.csv" "$WORK/ends-labelled.csv" "$WORK/session/ends-true.csv" "$OUT/"
 "$BIN/python" scripts/experiments/rehearsal/summarise.py "$OUT"

@@ -59,6 +59,17 @@ for seed in ${INEST_REHEARSAL_SEEDS:-0 1 2}; do
       "$WORK/heldout" --out "$OUT/quality-$name" --schemes 3
   done
 done
+# diagnostic, seed 0: the robot arm labelled with the true ends (what the labeller's +-2 frames cost)
+if [ ! -d "$WORK/imported-true-ends" ]; then
+  cp -r "$WORK/imported" "$WORK/imported-true-ends"
+  "$BIN/inest-label-demos" "$WORK/imported-true-ends" "$WORK/session/ends-true.csv"
+fi
+timed pretrain-robot-true-ends-seed0 "$WORK/pretrain-robot-true-ends-seed0/model/model.json" "$BIN/inest-pretrain" \
+  "$WORK/imported-true-ends" --out "$WORK/pretrain-robot-true-ends-seed0" "${RECIPE[@]}" --seed 0
+mkdir -p "$OUT/model-robot-true-ends-seed0"
+cp "$WORK/pretrain-robot-true-ends-seed0/model/"* "$OUT/model-robot-true-ends-seed0/"
+timed quality-robot-true-ends-seed0 "$OUT/quality-robot-true-ends-seed0/report.json" "$BIN/inest-reward-quality" \
+  "$OUT/model-robot-true-ends-seed0" "$WORK/heldout" --out "$OUT/quality-robot-true-ends-seed0" --schemes 3
 # served: the robot model over the graph, the simulator sending JPEG cameras, a short training run
 SERVE=(.venv/bin/inest-launch --model "$OUT/model-robot-seed0" --sims 1 --steps 300 --out "$WORK/serve"
   --param sim:image_transport:=compressed --param reward:image_transport:=compressed)

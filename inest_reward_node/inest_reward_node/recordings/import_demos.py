@@ -26,7 +26,7 @@ from ..runtime.images import RESIZE_MODES
 from .bags import STAMP_SOURCES, Bag, bag_episodes, read_episode_times
 from .lerobot import lerobot_episodes, read_info
 from .videos import video_episodes
-from .writer import RecordedEpisode, RecordingError, write_recorded_dataset
+from .writer import RecordedEpisode, RecordingError, check_out, write_recorded_dataset
 
 KINDS = ("bag", "lerobot", "videos")
 BAG_SUFFIXES = (".mcap", ".db3")
@@ -93,8 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.rate <= 0 or args.image_size < 8 or not 0 <= args.valid_fraction < 1:
             raise RecordingError("--rate must be > 0, --image-size >= 8, --valid-fraction in [0, 1)")
-        if args.out.exists():
-            raise DatasetError(f"{args.out} exists; choose another --out folder (an import never writes into one)")
+        check_out(args.out)
         kind = args.kind or source_kind(args.sources)
         if kind != "bag" and len(args.sources) != 1:
             raise RecordingError(f"a {kind} source is one folder; {len(args.sources)} were given")

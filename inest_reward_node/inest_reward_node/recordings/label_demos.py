@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from inest_common.files import sha256_of, write_atomic
 from inest_common.settings import OneLineParser
-from inest_sim_node.dataset import SPLITS, DatasetError, DemoDataset, episode_name, read_episode, write_metadata
+from inest_sim_node.dataset import SPLITS, DatasetError, DemoDataset, episode_name, write_metadata
 from inest_sim_node.subtasks import DESCRIPTIONS
 
 from ..learning.labels import write_sheets
@@ -138,8 +138,7 @@ def write_template(path: Path, frames: dict[str, int], subtasks: int) -> None:
 def sheet_frames(dataset: DemoDataset, view: str | None) -> tuple[list[np.ndarray], str]:
     """Every demonstration's frames through `view` (default: the scene camera where there is one,
     it shows which blocks lie in the strip)."""
-    entries = [entry for split in SPLITS for entry in dataset.entries(split)]
-    episodes = [read_episode(dataset.root / entry["file"], entry["sha256"]) for entry in entries]
+    episodes = [dataset.load(split, index) for split in SPLITS for index in range(len(dataset.entries(split)))]
     chosen = view or ("allo" if "allo" in episodes[0].views else episodes[0].views[0])
     return [episode.frames(chosen) for episode in episodes], chosen
 

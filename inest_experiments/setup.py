@@ -25,6 +25,7 @@ setup(
             "inest-summarise = inest_experiments.summary:main",
             "inest-experiments = inest_experiments.experiments:main",
             "inest-record-clips = inest_experiments.record_clips:main",
+            "inest-record-exploit-suite = inest_experiments.record_suite:main",
         ],
     },
 )

@@ -27,6 +27,8 @@ setup(
             "inest-reward-node = inest_reward_node.node:main",
             "inest-pretrain = inest_reward_node.learning.pretrain:main",
             "inest-reward-quality = inest_reward_node.learning.quality:main",
+            "inest-exploit-suite = inest_reward_node.learning.exploit_check:main",
+            "inest-model-card = inest_reward_node.learning.model_card:main",
             "inest-label-clips = inest_reward_node.learning.labels:main",
             "inest-import-demos = inest_reward_node.recordings.import_demos:main",
             "inest-label-demos = inest_reward_node.recordings.label_demos:main",

@@ -11,6 +11,7 @@ from inest_agent_node.evaluate import LAYOUT_SETS, layouts
 from inest_agent_node.learners import learner_class
 from inest_agent_node.policy_export import export_policy, load_policy
 from inest_agent_node.train import Trainer, new_learner, restore_learner
+from safetensors.numpy import load_file, save_file
 from small_training import small_train_config
 
 from inest_experiments import reevaluate
@@ -47,6 +48,18 @@ def test_an_exported_actor_acts_as_the_learner_s_deterministic_policy(learner, t
     np.testing.assert_allclose(load_policy(tmp_path / "again").predict(observations), expected, atol=1e-5)
     with pytest.raises(ValueError, match="observes 24 values"):
         policy.predict(observations[:, :20])
+    many = np.repeat(observations[:4], 2000, axis=0)  # sampled actions spread as the learner's own do
+    sampled = policy.sample(many, np.random.default_rng(1)).reshape(4, 2000, 3)
+    learners = trainer.model.predict(many, deterministic=False)[0].reshape(4, 2000, 3)
+    np.testing.assert_allclose(sampled.mean(1), learners.mean(1), atol=0.05)
+    np.testing.assert_allclose(sampled.std(1), learners.std(1), atol=0.05)
+    tensors = load_file(str(tmp_path / "run" / "policy" / "actor.safetensors"))
+    save_file({k: v for k, v in tensors.items() if not k.startswith("log_std")}, str(tmp_path / "old.safetensors"))
+    (tmp_path / "old.safetensors").replace(tmp_path / "run" / "policy" / "actor.safetensors")
+    older = load_policy(tmp_path / "run")  # exported before the log std was kept: mean actions only
+    np.testing.assert_allclose(older.predict(observations), expected, atol=1e-5)
+    with pytest.raises(ValueError, match="without its log std layer"):
+        older.sample(observations, np.random.default_rng(0))
     with pytest.raises(ValueError, match="exporting a crossq policy is not supported"):
         export_policy(loaded, small_train_config(reward="env", learner="crossq"), tmp_path / "crossq")
 

@@ -1,7 +1,8 @@
-"""A trained policy as a small, self-describing folder: the deterministic actor's weights
-(`actor.safetensors`, a few hundred kB against the 9 MB of the learner's checkpoint state with its
-critics and optimiser) and what it observes (`policy.json`: the observation, the stage scheme,
-each entry's name, the run's full training config).
+"""A trained policy as a small, self-describing folder: the actor's weights (`actor.safetensors`,
+a few hundred kB against the 9 MB of the learner's checkpoint state with its critics and
+optimiser: the mean's layers and, in policies exported since it was added, the log standard
+deviation's layer, so its rollouts can sample actions as training did) and what it observes
+(`policy.json`: the observation, the stage scheme, each entry's name, the run's full training config).
 
 Why: a committed policy can be re-evaluated on new layouts, with a new metric or after a bug
 fix in evaluation without retraining, and without the learner's library; the SAC family's
@@ -30,38 +31,61 @@ VERSION = 1
 EXPORTABLE = ("sac", "sbx_sac", "sbx_droq")  # plain MLP actors; CrossQ's batch renormalisation is not exported
 
 
-def actor_layers(model: Any, learner: str) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(weight (out, in), bias) of each hidden layer and then the mean layer of a SAC-family actor."""
-    if learner == "sac":  # stable-baselines3: actor.latent_pi (Linear, ReLU, ...) then actor.mu
-        linear = [module for module in model.actor.latent_pi if hasattr(module, "weight")] + [model.actor.mu]
-        return [(layer.weight.detach().cpu().numpy(), layer.bias.detach().cpu().numpy()) for layer in linear]
-    if learner in ("sbx_sac", "sbx_droq"):  # SBX: Dense_0..Dense_{n-1} hidden, Dense_n mean, Dense_{n+1} log std
+LOG_STD_RANGE = (-20.0, 2.0)  # where both libraries clip the actor's log standard deviation
+Layer = tuple[np.ndarray, np.ndarray]  # weight (out, in), bias
+
+
+def actor_layers(model: Any, learner: str) -> tuple[list[Layer], Layer]:
+    """Each hidden layer and then the mean layer of a SAC-family actor, and its log std layer."""
+    if learner == "sac":  # stable-baselines3: actor.latent_pi (Linear, ReLU, ...), actor.mu, actor.log_std
+        linear = [module for module in model.actor.latent_pi if hasattr(module, "weight")]
+        linear += [model.actor.mu, model.actor.log_std]
+        layers = [(layer.weight.detach().cpu().numpy(), layer.bias.detach().cpu().numpy()) for layer in linear]
+    elif learner in ("sbx_sac", "sbx_droq"):  # SBX: Dense_0..Dense_{n-1} hidden, Dense_n mean, Dense_{n+1} log std
         params = model.policy.actor_state.params["params"]
         dense = sorted((name for name in params if name.startswith("Dense_")), key=lambda name: int(name[6:]))
-        return [(np.asarray(params[name]["kernel"]).T, np.asarray(params[name]["bias"])) for name in dense[:-1]]
-    raise ValueError(f"exporting a {learner} policy is not supported; exportable learners: {EXPORTABLE}")
+        layers = [(np.asarray(params[name]["kernel"]).T, np.asarray(params[name]["bias"])) for name in dense]
+    else:
+        raise ValueError(f"exporting a {learner} policy is not supported; exportable learners: {EXPORTABLE}")
+    return layers[:-1], layers[-1]
 
 
 @dataclass
 class ExportedPolicy:
-    """The deterministic actor: relu hidden layers, then tanh of the mean (actions in [-1, 1])."""
+    """The actor: relu hidden layers, then tanh of the mean (actions in [-1, 1]), or of a sample
+    around it with the log std layer's spread (policies exported before it was kept have none)."""
 
-    layers: list[tuple[np.ndarray, np.ndarray]]
+    layers: list[Layer]
     info: dict[str, Any]  # policy.json
+    log_std: Layer | None = None
 
     @property
     def config(self) -> TrainConfig:
         """The training config of the run the policy comes from."""
         return TrainConfig.from_dict(self.info["train_config"])
 
-    def predict(self, observations: np.ndarray) -> np.ndarray:
+    def _features(self, observations: np.ndarray) -> np.ndarray:
         x = np.asarray(observations, np.float32)
         if x.ndim != 2 or x.shape[1] != self.layers[0][0].shape[1]:
             raise ValueError(f"the policy observes {self.layers[0][0].shape[1]} values, got shape {x.shape}")
         for weight, bias in self.layers[:-1]:
             x = np.maximum(x @ weight.T + bias, 0.0)
+        return x
+
+    def predict(self, observations: np.ndarray) -> np.ndarray:
+        """The deterministic action: tanh of the mean."""
         weight, bias = self.layers[-1]
-        return np.tanh(x @ weight.T + bias)
+        return np.tanh(self._features(observations) @ weight.T + bias)
+
+    def sample(self, observations: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """An action drawn as training drew it: tanh of mean + exp(log std) x standard normal."""
+        if self.log_std is None:
+            raise ValueError("this policy was exported without its log std layer: it has mean actions only")
+        features = self._features(observations)
+        (weight, bias), (std_weight, std_bias) = self.layers[-1], self.log_std
+        mean = features @ weight.T + bias
+        log_std = np.clip(features @ std_weight.T + std_bias, *LOG_STD_RANGE)
+        return np.tanh(mean + np.exp(log_std) * rng.standard_normal(mean.shape))
 
 
 def exported(model: Any, config: TrainConfig) -> ExportedPolicy:
@@ -77,8 +101,9 @@ def exported(model: Any, config: TrainConfig) -> ExportedPolicy:
         "observation_fields": list(observation_fields(config.observation, config.stage_subtasks)),
         "train_config": config.to_dict(),
     }
-    layers = [(np.array(w, np.float32), np.array(b, np.float32)) for w, b in actor_layers(model, config.learner)]
-    return ExportedPolicy(layers, info)
+    mean_path, log_std = actor_layers(model, config.learner)
+    layers = [(np.array(w, np.float32), np.array(b, np.float32)) for w, b in mean_path]
+    return ExportedPolicy(layers, info, (np.array(log_std[0], np.float32), np.array(log_std[1], np.float32)))
 
 
 def export_policy(model: Any, config: TrainConfig, folder: str | Path) -> Path:
@@ -86,9 +111,10 @@ def export_policy(model: Any, config: TrainConfig, folder: str | Path) -> Path:
     folder = Path(folder)
     policy = exported(model, config)
     tensors = {}
-    for index, (weight, bias) in enumerate(policy.layers):
-        tensors[f"layer{index}.weight"] = np.ascontiguousarray(weight)
-        tensors[f"layer{index}.bias"] = np.ascontiguousarray(bias)
+    named = [(f"layer{index}", layer) for index, layer in enumerate(policy.layers)]
+    for name, (weight, bias) in [*named, ("log_std", policy.log_std)]:
+        tensors[f"{name}.weight"] = np.ascontiguousarray(weight)
+        tensors[f"{name}.bias"] = np.ascontiguousarray(bias)
     write_atomic(folder / ACTOR_FILE, lambda path: save_file(tensors, str(path)))
     write_atomic(folder / POLICY_FILE, lambda path: path.write_text(json.dumps(policy.info, indent=2) + "\n"))
     return folder
@@ -106,9 +132,10 @@ def load_policy(folder: str | Path) -> ExportedPolicy:
         )
     info = read_versioned_json(folder / POLICY_FILE, FORMAT, VERSION, "exported policy", RunFileError)
     tensors = read_run_file(folder / ACTOR_FILE, lambda path: load_file(str(path)))
-    count = len(tensors) // 2
+    count = sum(name.startswith("layer") for name in tensors) // 2
     try:
         layers = [(tensors[f"layer{i}.weight"], tensors[f"layer{i}.bias"]) for i in range(count)]
     except KeyError as error:
         raise RunFileError(f"{folder / ACTOR_FILE} lacks {error.args[0]}") from None
-    return ExportedPolicy(layers, info)
+    log_std = (tensors["log_std.weight"], tensors["log_std.bias"]) if "log_std.weight" in tensors else None
+    return ExportedPolicy(layers, info, log_std)

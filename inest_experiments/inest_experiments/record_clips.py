@@ -35,13 +35,15 @@ CLIP_SEED = 42_000_000  # layouts no demonstration, training, evaluation or cali
 ENVS = 10
 
 
-class ClipRecorder(VecEnvWrapper):
-    """Keeps every environment's camera frames, true progress and grasp flag, one Clip per finished episode."""
+class RolloutRecorder(VecEnvWrapper):
+    """Keeps the info entries `keys` of every environment's steps, one tuple of arrays per
+    finished episode (in the order they finish: a batch of fixed-length episodes by environment)."""
 
-    def __init__(self, venv: VecEnv) -> None:
+    def __init__(self, venv: VecEnv, keys: tuple[str, ...]) -> None:
         super().__init__(venv)
-        self.running: list[list[tuple[np.ndarray, int, bool]]] = [[] for _ in range(venv.num_envs)]
-        self.clips: list[Clip] = []
+        self.keys = keys
+        self.running: list[list[tuple]] = [[] for _ in range(venv.num_envs)]
+        self.episodes: list[tuple[np.ndarray, ...]] = []
 
     def reset(self) -> np.ndarray:
         self.running = [[] for _ in range(self.num_envs)]
@@ -50,10 +52,9 @@ class ClipRecorder(VecEnvWrapper):
     def step_wait(self):
         observations, rewards, dones, infos = self.venv.step_wait()
         for index, info in enumerate(infos):
-            self.running[index].append((info[FRAME_KEY], int(info[TRUE_PROGRESS]), bool(info["held"])))
+            self.running[index].append(tuple(info[key] for key in self.keys))
             if dones[index]:
-                frames, progress, held = zip(*self.running[index], strict=True)
-                self.clips.append(Clip(np.stack(frames), np.array(progress), np.array(held)))
+                self.episodes.append(tuple(np.array(column) for column in zip(*self.running[index], strict=True)))
                 self.running[index] = []
         return observations, rewards, dones, infos
 
@@ -66,10 +67,10 @@ def record(run_dir: Path, episodes: int, seed: int, deterministic: bool, progres
             f"{run_dir}: its evaluations score no camera frames (the {config.reward!r} reward, the "
             f"{config.observation!r} observation): record clips of a run whose reward reads a camera"
         )
-    recorders: list[ClipRecorder] = []
+    recorders: list[RolloutRecorder] = []
 
     def keep(venv: VecEnv) -> VecEnv:
-        recorders.append(ClipRecorder(venv))
+        recorders.append(RolloutRecorder(venv, (FRAME_KEY, TRUE_PROGRESS, "held")))
         return recorders[-1]
 
     env = build_env(config, ENVS, seed, evaluation=True, wrap_simulators=keep)
@@ -80,11 +81,11 @@ def record(run_dir: Path, episodes: int, seed: int, deterministic: bool, progres
     recorder = recorders[0]
     observations = env.reset()
     with track(total=episodes, desc="recording clips", unit="episode", disable=not progress_bar) as bar:
-        while len(recorder.clips) < episodes:
-            before = len(recorder.clips)
+        while len(recorder.episodes) < episodes:
+            before = len(recorder.episodes)
             observations = env.step(model.predict(observations, deterministic=deterministic)[0])[0]
-            bar.update(min(len(recorder.clips), episodes) - before)
-    return recorder.clips[:episodes]
+            bar.update(min(len(recorder.episodes), episodes) - before)
+    return [Clip(frames, progress, held) for frames, progress, held in recorder.episodes[:episodes]]
 
 
 def main(argv: list[str] | None = None) -> int:

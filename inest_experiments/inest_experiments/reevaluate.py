@@ -14,15 +14,17 @@ import dataclasses
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from inest_agent_node.envs import build_env
 from inest_agent_node.evaluate import EvalResult, evaluate_vec_env, format_table, layouts
-from inest_agent_node.policy_export import POLICY_DIR, load_policy
+from inest_agent_node.policy_export import POLICY_DIR, ExportedPolicy, load_policy
 from inest_common.files import write_atomic
 from inest_common.settings import OneLineParser
 from inest_reward_node.learning.stage_refit import REFIT_MODEL_DIR
 from inest_reward_node.runtime.model import ModelError
+from stable_baselines3.common.vec_env import VecEnv
 
 EVALUATIONS_DIR = "evaluations"
 MAX_ENVS = 10  # episodes played side by side (one encoder pass for all their frames)
@@ -33,20 +35,30 @@ def run_home(run: Path) -> Path:
     return run.parent if run.name == POLICY_DIR else run
 
 
-def reevaluate(run: Path, spec: str, episodes: int) -> tuple[EvalResult, dict]:
-    """The run's exported policy on the layouts `spec` (inest_agent_node.evaluate.layouts, of the run's seed)."""
+def policy_and_env(
+    run: Path, num_envs: int, wrap_simulators: Callable[[VecEnv], VecEnv] | None = None
+) -> tuple[ExportedPolicy, VecEnv]:
+    """The run's exported policy and `num_envs` environments of its training config's observation
+    path and reward (evaluation's: no intrinsic bonus), with the stage classifier it refitted last."""
     policy = load_policy(run)
     refitted = run_home(run) / REFIT_MODEL_DIR  # the stage classifier the run refitted last (stage_refit)
     config = dataclasses.replace(policy.config, model=str(refitted)) if refitted.exists() else policy.config
-    on = layouts(spec, config.seed)
+    env = build_env(config, num_envs=num_envs, evaluation=True, wrap_simulators=wrap_simulators)
+    if env.observation_space.shape != (policy.layers[0][0].shape[1],):
+        env.close()
+        raise ValueError(
+            f"{run}: the policy observes {policy.layers[0][0].shape[1]} values, its config's "
+            f"observation path gives {env.observation_space.shape[0]}"
+        )
+    return policy, env
+
+
+def reevaluate(run: Path, spec: str, episodes: int) -> tuple[EvalResult, dict]:
+    """The run's exported policy on the layouts `spec` (inest_agent_node.evaluate.layouts, of the run's seed)."""
+    on = layouts(spec, load_policy(run).config.seed)
     on.check(episodes)
-    env = build_env(config, num_envs=min(MAX_ENVS, episodes), evaluation=True)
+    policy, env = policy_and_env(run, min(MAX_ENVS, episodes))
     try:
-        if env.observation_space.shape != (policy.layers[0][0].shape[1],):
-            raise ValueError(
-                f"{run}: the policy observes {policy.layers[0][0].shape[1]} values, its config's "
-                f"observation path gives {env.observation_space.shape[0]}"
-            )
         start = time.monotonic()
         result = evaluate_vec_env(env, policy.predict, episodes, on)
     finally:

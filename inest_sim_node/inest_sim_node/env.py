@@ -83,7 +83,8 @@ class SweepToTopEnv(gym.Env):
     Reward: the dense, order-aware oracle reward (`scoring.dense_reward`, with
     `reward="approach"` also paying for reaching and holding the current block); learned
     rewards replace it in wrappers. Episodes never terminate early; they are truncated after `max_steps`.
-    `info["score"]` is the ordered score k / 3 at every step.
+    `info["score"]` is the ordered score k / 3 at every step; `info["body_poses"]` the moving
+    bodies' poses, from which any camera's image renders again (SceneRenderer.render_poses).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 8}
@@ -197,4 +198,5 @@ class SweepToTopEnv(gym.Env):
             "is_success": progress == len(BLOCK_COLOURS),
             "in_goal": self._gaps == 0.0,
             "held": self.holds_current_block,
+            "body_poses": self.world.body_poses(),  # every camera renders again from these (render_poses)
         }

@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 
 from .config import VIEWS, WorldConfig
-from .world import BLOCK_COLOURS, FINGER_SIDES, World, finger_polygons
+from .world import BLOCK_COLOURS, BODY_ORDER, FINGER_SIDES, World, finger_polygons
 
 ZOOM_OUT = 1.02  # X-MAGICAL shows a sliver of wall around the arena
 EGO_ROBOT_AT = (0.5, 0.85)  # fraction of width, fraction of height from the top
@@ -74,12 +74,20 @@ class SceneRenderer:
         self._allo_backdrops: dict[int, np.ndarray] = {}
 
     def render(self, world: World, view: str, size: int) -> np.ndarray:
+        return self.render_poses(world.body_poses(), view, size)
+
+    def render_poses(self, poses: np.ndarray, view: str, size: int) -> np.ndarray:
+        """The image of a world whose moving bodies stand at `poses` (World.body_poses): a
+        recorded episode's poses render again from any camera at any size."""
         if view not in VIEWS:
             raise ValueError(f"unknown view {view!r}; expected one of {VIEWS}")
         if size <= 0:
             raise ValueError(f"image size must be positive, got {size}")
-        linear, offset = self._camera(world, view, size)
-        pixels = self._outline_pixels(world, linear, offset)
+        poses = np.asarray(poses, dtype=float)
+        if poses.shape != (len(BODY_ORDER), 3):
+            raise ValueError(f"poses must have shape ({len(BODY_ORDER)}, 3) (angle, x, y per body), got {poses.shape}")
+        linear, offset = self._camera(poses[-1], view, size)
+        pixels = self._outline_pixels(poses, linear, offset)
         outlines = [pixels[part] for part in self._outline_slices]
         floor, goal, *bodies, centre = outlines
         blocks, fingers = bodies[: len(BLOCK_COLOURS)], bodies[len(BLOCK_COLOURS) :]
@@ -99,23 +107,23 @@ class SceneRenderer:
         cv2.circle(image, centre, radius, PALETTE["robot_edge"], thin, cv2.LINE_AA, _SHIFT)
         return image
 
-    def _outline_pixels(self, world: World, linear: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    def _outline_pixels(self, body_poses: np.ndarray, linear: np.ndarray, offset: np.ndarray) -> np.ndarray:
         """Every outline's points in fixed-point pixel coordinates for OpenCV, in one pass."""
-        bodies = [*world.block_bodies, *world.finger_bodies, world.robot]
-        poses = np.array([(0.0, 0.0, 0.0)] + [(body.angle, *body.position) for body in bodies])
+        poses = np.concatenate([np.zeros((1, 3)), body_poses])  # frame 0: the world itself
         body_to_pixel = linear @ _rotation(poses[:, 0])
         pixel_offsets = poses[:, 1:] @ linear.T + offset
         frames = self._frame_of_point
         pts = np.einsum("pij,pj->pi", body_to_pixel[frames], self._local) + pixel_offsets[frames]
         return np.rint(pts * _ONE).astype(np.int32)
 
-    def _camera(self, world: World, view: str, size: int) -> tuple[np.ndarray, np.ndarray]:
-        """World-to-pixel map p -> linear @ p + offset (pixel centres at integer coordinates)."""
+    def _camera(self, robot_pose: np.ndarray, view: str, size: int) -> tuple[np.ndarray, np.ndarray]:
+        """World-to-pixel map p -> linear @ p + offset (pixel centres at integer coordinates);
+        `robot_pose` (angle, x, y) places the egocentric camera."""
         scale = size / self._extent
         flip = np.array([[scale, 0.0], [0.0, -scale]])
         if view == "allo":
             return flip, np.full(2, size / 2 - 0.5)
-        x, y, angle = world.robot_pose
+        angle, x, y = robot_pose
         linear = flip @ _rotation(-angle)
         anchor = np.array([EGO_ROBOT_AT[0] * size, EGO_ROBOT_AT[1] * size]) - 0.5
         return linear, anchor - linear @ np.array([x, y])

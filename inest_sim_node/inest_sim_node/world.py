@@ -18,6 +18,7 @@ from .config import LayoutConfig, WorldConfig
 
 BLOCK_COLOURS = ("red", "blue", "yellow")  # also the order in which they must reach the goal
 FINGER_SIDES = (-1, 1)  # left, right (seen from behind the robot)
+BODY_ORDER = (*BLOCK_COLOURS, "left_finger", "right_finger", "robot")  # rows of World.body_poses
 _ROBOT_GROUP = 1
 _FINGER_MAX_RATE = 3.0  # rad/s: the fingers open or close fully within about one control step
 
@@ -194,6 +195,11 @@ class World:
         """0 = closed, 1 = fully open, measured from the finger bodies (a held block keeps them apart)."""
         spread = (self.finger_bodies[0].angle - self.finger_bodies[1].angle) / 2
         return float(np.clip(spread / self.config.finger_open_angle, 0.0, 1.0))
+
+    def body_poses(self) -> np.ndarray:
+        """(angle, x, y) of every moving body in BODY_ORDER: all a camera image depends on."""
+        bodies = [*self.block_bodies, *self.finger_bodies, self.robot]
+        return np.array([(body.angle, *body.position) for body in bodies])
 
     @property
     def block_xy(self) -> np.ndarray:

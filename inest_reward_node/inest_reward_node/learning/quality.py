@@ -46,6 +46,10 @@ Per subtask k (report key `per_subtask`, one entry per subtask, in order):
 - false_not_early_rate: the same, counting only false completions that no true completion of
   k followed within NOT_EARLY_AFTER frames (an early switch is false, but the episode earned it).
 
+With --exploit-suite, the report adds `exploit_suite`: per scheme, the suite part's unplaced
+claims, early claims and misses per subtask and per policy (exploit_suite: trained policies' own
+rollouts, re-rendered through this model's cameras), beside the random and wrong-order rates.
+
 Every reward is scored through `RewardScorer` (`rewards.replay`) with the RewardConfig that
 inest-train's flags of the same names set, so the report can be run per shaping / tracker
 variant, e.g. `--shaping thesis --tracker threshold`. `--stage-source privileged` (DIAGNOSTIC)
@@ -82,6 +86,7 @@ from ..runtime.rewards import Replay, RewardScorer, replay
 from .calibrate import describe_supervision, recorded_supervision, subtask_starts
 from .clips import Clip, ClipError, load_clips, random_play, wrong_order_play
 from .data import Demo, load_demos
+from .exploit_suite import SUITE_DIR, SuitePart, claims, load_part, suite_file, summarise_claims
 from .task_stages import demo_stages, true_stages
 
 REPORT_FILE = "report.json"
@@ -241,6 +246,48 @@ def event_flags(events: list[list[list[int]]], episodes: list[Clip], scheme: int
     """(episodes, subtasks) bool: false_completions of each episode's `events` (negative_events)."""
     rows = [false_completions(row, clip, scheme, early_frames) for row, clip in zip(events, episodes, strict=True)]
     return np.stack(rows) if rows else np.zeros((0, 0), dtype=bool)
+
+
+def suite_report(
+    model: RewardModel,
+    part: SuitePart,
+    schemes: list[int],
+    scorer_options: dict[str, Any] | None = None,
+    progress_bar: bool = True,
+) -> dict[str, Any]:
+    """Per scheme, the claims of the scheme's default reward on the exploit suite `part`
+    (exploit_suite.summarise_claims), every episode seen through the model's cameras and then
+    SETTLE_FRAMES copies of its last frame, as demonstrations are replayed."""
+    camera = stage_camera(model, schemes, scorer_options)
+    clips = part.clips(model.view, model.image_size, SETTLE_FRAMES)
+    seen = clips if camera is None else part.clips(camera, model.image_size, SETTLE_FRAMES)
+    embeddings = [model.embed(clip.frames) for clip in track(clips, desc="exploit suite", disable=not progress_bar)]
+    policies = [episode.policy for episode in part.episodes]
+    report: dict[str, Any] = {**part.describe(), "schemes": {}}
+    for scheme in schemes:
+        events = negative_events(model, clips, embeddings, scheme, default_variant(model, scheme), scorer_options, seen)
+        rows = [claims(row, clip, scheme) for row, clip in zip(events, clips, strict=True)]
+        report["schemes"][str(scheme)] = summarise_claims(rows, policies)
+    return report
+
+
+def format_suite(suite: dict[str, Any]) -> list[str]:
+    """The suite's rates per scheme and subtask, one line each."""
+    lines = [
+        f"exploit suite, {suite['part']} part ({suite['episodes']} episodes of {suite['policies']} policies): "
+        "unplaced claims / early claims / misses"
+    ]
+    for scheme, row in suite["schemes"].items():
+        lines.append(
+            f"  {scheme} subtasks: unplaced claim of any subtask in {row['unplaced_claim_any']:.1%} of episodes"
+        )
+        for sub in row["per_subtask"]:
+            cells = [_number(sub[key], ".1%", 8) for key in ("unplaced_claim_rate", "early_claim_rate", "miss_rate")]
+            name = subtask_name(int(scheme), sub["subtask"])
+            lines.append(
+                f"  {sub['subtask'] + 1} {name:<13}{''.join(cells)}   ({sub['episodes_completing']} completing)"
+            )
+    return lines
 
 
 # --- one demonstration ---------------------------------------------------------------------
@@ -585,9 +632,10 @@ def evaluate(
     clip_files: Sequence[str] = (),
     stage_frames: list[np.ndarray] | None = None,
     negative_seed_offset: int = 0,
+    suite: SuitePart | None = None,
 ) -> dict[str, Any]:
     """The report over `demos` for every scheme, with `negative_episodes` negatives of each kind
-    (layout seeds moved by `negative_seed_offset`) and the clips of `clip_files`;
+    (layout seeds moved by `negative_seed_offset`), the clips of `clip_files` and the exploit suite part `suite`;
     every reward is scored by `RewardScorer(model, scheme, variant, **scorer_options)`. A stage
     head that reads another camera than the encoder needs the demonstrations through it
     (`stage_frames`, load_stage_frames); the negatives are played through both."""
@@ -645,6 +693,8 @@ def evaluate(
         plot_scheme(results, figure_title(scorer, scheme, model.view), plot_path)
         summary["plot"] = plot_path.name
         report["schemes"][str(scheme)] = summary
+    if suite is not None:
+        report["exploit_suite"] = suite_report(model, suite, schemes, scorer_options, progress_bar)
     (out / REPORT_FILE).write_text(json.dumps(report, indent=2) + "\n")
     return report
 
@@ -714,6 +764,8 @@ def format_summary(report: dict[str, Any]) -> str:
             f"false: share of negative episodes ({counts}); not early: false completions no true completion "
             f"followed within {NOT_EARLY_AFTER} frames"
         )
+    if "exploit_suite" in report:
+        lines += format_suite(report["exploit_suite"])
     return "\n".join(lines)
 
 
@@ -738,6 +790,11 @@ def main(argv: list[str] | None = None) -> int:
         help="moves the negatives' layout seeds, for a selection set the reported figures never see",
     )
     parser.add_argument("--clips", nargs="+", default=[], metavar="FILE", help="labelled clip files, negatives too")
+    parser.add_argument(
+        "--exploit-suite",
+        metavar="FILE",
+        help=f"an exploit suite part to count claims on (the committed one: {suite_file(SUITE_DIR, 'development')})",
+    )
     reward_flags = add_setting_flags(
         parser.add_argument_group("how the reward scores (RewardConfig; the same flags as inest-train's)"),
         RewardConfig,
@@ -753,6 +810,7 @@ def main(argv: list[str] | None = None) -> int:
         for scheme in schemes:
             model.goals(scheme)
         check_scorer_options(model, schemes, scorer_options)
+        suite = None if args.exploit_suite is None else load_part(args.exploit_suite)
         demos = load_demos(args.dataset, args.split, model.view, model.image_size, args.limit)
         if not demos:
             raise DatasetError(f"{args.dataset} has no {args.split} demonstrations")
@@ -766,6 +824,7 @@ def main(argv: list[str] | None = None) -> int:
             clip_files=args.clips,
             stage_frames=load_stage_frames(model, schemes, scorer_options, args.dataset, args.split, args.limit),
             negative_seed_offset=args.negative_seed_offset,
+            suite=suite,
         )
     except (ModelError, DatasetError, ScorerOptionError, ClipError) as error:
         print(f"inest-reward-quality: {error}", file=sys.stderr)

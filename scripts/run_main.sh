@@ -12,7 +12,7 @@ bash "$ROOT/scripts/setup_env.sh"
 BIN="${INEST_VENV:-$ROOT/.venv}/bin"
 cd "$ROOT"
 MODEL=results/long-horizon/reward-model-scene96-600demos   # the committed default reward model
-POLICY=results/default-policy                              # SAC trained on it, exported (results/default-policy/)
+POLICY=results/robot-reward/inest3-scene/seed2             # SAC trained on it with the defaults (results/README.md)
 rm -rf runs/graph-trained runs/graph-main                  # fresh runs each time
 echo "== the trained agent on the live graph: the subtask should climb to 3"
 "$BIN/inest-launch" --out runs/graph-trained --model "$MODEL" --sims 2 \

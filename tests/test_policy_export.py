@@ -4,6 +4,7 @@ re-evaluated without retraining and repeats its own final evaluation."""
 from __future__ import annotations
 
 import json
+import subprocess
 
 import numpy as np
 import pytest
@@ -83,3 +84,39 @@ def test_inest_evaluate_repeats_a_run_s_final_evaluation_and_refuses_bad_input(t
     assert "layouts must be one of" in capsys.readouterr().err
     assert reevaluate.main([str(tmp_path / "nothing")]) == 2
     assert "no exported policy" in capsys.readouterr().err
+
+
+def test_the_locked_test_set_is_scored_once_per_run_for_a_release_with_its_commit(tmp_path, capsys):
+    run = tmp_path / "run"
+    Trainer(small_train_config(reward="env", final_eval_episodes=2), run, progress_bar=False).train()
+    repo = tmp_path / "repo"
+    (repo / "results").mkdir(parents=True)
+    (repo / "notes.txt").write_text("v1\n")
+    for command in (
+        ["init", "-q"],
+        ["add", "notes.txt"],
+        ["-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "v1"],
+    ):
+        subprocess.run(["git", "-C", str(repo), *command], check=True)
+    head = subprocess.run(["git", "-C", str(repo), "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+    ledger = repo / "results" / "ledger.json"
+    locked = [str(run), "--layouts", "locked", "--episodes", "2", "--ledger", str(ledger)]
+    with pytest.raises(ValueError, match="locked test set"):
+        layouts("locked")  # nothing else may draw from it: not training, not a seed range
+    with pytest.raises(ValueError, match="locked test set"):
+        layouts("49999990:50000010")
+    with pytest.raises(SystemExit):
+        reevaluate.main(locked)  # no release named
+    assert "go together" in capsys.readouterr().err
+    (repo / "notes.txt").write_text("v2, not committed\n")
+    assert reevaluate.main([*locked, "--release", "v1"]) == 2
+    assert "commit first" in capsys.readouterr().err and not ledger.exists()
+    (repo / "notes.txt").write_text("v1\n")
+    assert reevaluate.main([*locked, "--release", "v1"]) == 0
+    entry = json.loads(ledger.read_text())["entries"][0]
+    assert entry["release"] == "v1" and entry["commit"] == head and entry["run"] == run.resolve().as_posix()
+    assert entry["evaluation"] == json.loads((run / "evaluations" / "locked-2.json").read_text())["evaluation"]
+    capsys.readouterr()
+    assert reevaluate.main([*locked, "--release", "v2"]) == 2  # once per run, whatever the release
+    assert "scored on the locked test layouts already (release v1" in capsys.readouterr().err
+    assert len(json.loads(ledger.read_text())["entries"]) == 1

@@ -3,9 +3,13 @@ the share of episodes ending with 0, 1, 2 or 3 blocks placed in order; learning-
 
 Layouts are named sets (`LAYOUT_SETS`), each episode's layout drawn from its own seed, never one
 training or the demonstrations draw: settings are chosen on `validation` scores (the learning
-curves, `final_validation`), results are reported on `test` (`final_evaluation`), which no
-choice has seen. `legacy` are the layouts every run before the split was evaluated on (10,000,000
-+ the run's seed + i), on which its settings were also chosen.
+curves, `final_validation`), results are reported on `test` (`final_evaluation`, the development
+test set: every run is scored on it, so over many runs it has informed the direction of the
+work). `legacy` are the layouts every run before the split was evaluated on (10,000,000 + the
+run's seed + i), on which its settings were also chosen. `locked` is the test set a release's
+headline rows are scored on once each (`inest-evaluate --layouts locked --release NAME`, which
+records the commit that scored them); `layouts` refuses it, and any seed range reaching into it,
+to everything else.
 """
 
 from __future__ import annotations
@@ -22,6 +26,8 @@ from stable_baselines3.common.vec_env import VecEnv
 from inest_sim_node import EnvConfig, SweepToTopEnv
 
 LAYOUT_SETS = {"legacy": 10_000_000, "validation": 20_000_000, "test": 30_000_000}  # the first layout seed
+LOCKED = "locked"
+LOCKED_SEEDS = range(50_000_000, 51_000_000)  # the locked test set's layouts; nothing else draws from them
 
 
 @dataclass(frozen=True)
@@ -40,14 +46,27 @@ class Layouts:
             raise ValueError(f"{episodes} episodes asked of the {self.size} layouts {self.name}")
 
 
-def layouts(spec: str, run_seed: int = 0) -> Layouts:
-    """`validation`, `test`, `legacy` (of the run's seed) or a seed range `FIRST:STOP`."""
+def seed_range(spec: str) -> Layouts:
+    first, colon, stop = spec.partition(":")
+    if not (colon and first.isdigit() and stop.isdigit() and int(stop) > int(first)):
+        names = sorted([*LAYOUT_SETS, LOCKED])
+        raise ValueError(f"layouts must be one of {names} or a seed range FIRST:STOP, got {spec!r}")
+    return Layouts(spec, int(first), int(stop) - int(first))
+
+
+def layouts(spec: str, run_seed: int = 0, release: bool = False) -> Layouts:
+    """`validation`, `test`, `legacy` (of the run's seed) or a seed range `FIRST:STOP`; `locked`,
+    or a range reaching into it, only for a `release`'s recorded scoring."""
     if spec in LAYOUT_SETS:
         return Layouts(spec, LAYOUT_SETS[spec] + (run_seed if spec == "legacy" else 0))
-    first, colon, stop = spec.partition(":")
-    if colon and first.isdigit() and stop.isdigit() and int(stop) > int(first):
-        return Layouts(spec, int(first), int(stop) - int(first))
-    raise ValueError(f"layouts must be one of {sorted(LAYOUT_SETS)} or a seed range FIRST:STOP, got {spec!r}")
+    chosen = Layouts(LOCKED, LOCKED_SEEDS.start, len(LOCKED_SEEDS)) if spec == LOCKED else seed_range(spec)
+    assert chosen.size is not None
+    if not release and chosen.first < LOCKED_SEEDS.stop and LOCKED_SEEDS.start < chosen.first + chosen.size:
+        raise ValueError(
+            f"layouts {spec!r} are the locked test set's ({LOCKED_SEEDS.start}:{LOCKED_SEEDS.stop}): "
+            "they are scored once per run, for a release, by inest-evaluate --layouts locked --release NAME"
+        )
+    return chosen
 
 
 VALIDATION, TEST = layouts("validation"), layouts("test")

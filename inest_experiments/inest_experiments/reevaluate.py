@@ -4,7 +4,9 @@ Each RUN is a training run folder with its exported policy (`policy/`, written b
 every checkpoint) or a policy folder itself. The policy plays through the observation path and
 reward of its own training config (the learned reward's stage reaches its observation), with the
 reward model that config names. One table row per run; each run's evaluation is written to
-RUN/evaluations/<layouts>-<episodes>.json (or --out, for one run).
+RUN/evaluations/<layouts>-<episodes>.json (or --out, for one run). `--layouts locked --release
+NAME` scores a release's headline rows on the locked test set, once per run, and records each in
+the ledger with the commit that scored it (release_ledger).
 """
 
 from __future__ import annotations
@@ -18,13 +20,16 @@ from collections.abc import Callable
 from pathlib import Path
 
 from inest_agent_node.envs import build_env
-from inest_agent_node.evaluate import EvalResult, evaluate_vec_env, format_table, layouts
+from inest_agent_node.evaluate import LOCKED, EvalResult, evaluate_vec_env, format_table, layouts
 from inest_agent_node.policy_export import POLICY_DIR, ExportedPolicy, load_policy
 from inest_common.files import write_atomic
 from inest_common.settings import OneLineParser
 from inest_reward_node.learning.stage_refit import REFIT_MODEL_DIR
 from inest_reward_node.runtime.model import ModelError
 from stable_baselines3.common.vec_env import VecEnv
+
+from .release_ledger import LEDGER, check_unscored, in_repository, read_ledger, repository, scoring_commit
+from .release_ledger import record as record_scoring
 
 EVALUATIONS_DIR = "evaluations"
 MAX_ENVS = 10  # episodes played side by side (one encoder pass for all their frames)
@@ -53,9 +58,9 @@ def policy_and_env(
     return policy, env
 
 
-def reevaluate(run: Path, spec: str, episodes: int) -> tuple[EvalResult, dict]:
+def reevaluate(run: Path, spec: str, episodes: int, release: bool = False) -> tuple[EvalResult, dict]:
     """The run's exported policy on the layouts `spec` (inest_agent_node.evaluate.layouts, of the run's seed)."""
-    on = layouts(spec, load_policy(run).config.seed)
+    on = layouts(spec, load_policy(run).config.seed, release)
     on.check(episodes)
     policy, env = policy_and_env(run, min(MAX_ENVS, episodes))
     try:
@@ -81,19 +86,34 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--episodes", type=int, default=150)
     parser.add_argument("--out", type=Path, help="the evaluation's JSON file (one run only)")
+    parser.add_argument("--release", help="with --layouts locked: the release these headline rows are for")
+    parser.add_argument("--ledger", type=Path, default=LEDGER, help="the locked set's ledger (default %(default)s)")
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error("--episodes must be at least 1")
     if args.out is not None and len(args.runs) > 1:
         parser.error("--out takes one run; several write RUN/evaluations/ each")
+    locked = args.layouts == LOCKED
+    if locked != bool(args.release):
+        parser.error(
+            "--layouts locked and --release NAME go together: the locked set is scored once per run, for a release"
+        )
     rows = {}
     try:
-        layouts(args.layouts)  # a bad name fails before any model loads
+        layouts(args.layouts, release=locked)  # a bad name fails before any model loads
+        if locked:  # every run unscored and the code committed, before any scoring
+            commit, ledger = scoring_commit(args.ledger), read_ledger(args.ledger)
+            top = repository(args.ledger)
+            for run in args.runs:
+                check_unscored(ledger, in_repository(run_home(run), top))
         for run in args.runs:
-            result, record = reevaluate(run, args.layouts, args.episodes)
+            result, record = reevaluate(run, args.layouts, args.episodes, locked)
             name = f"{args.layouts.replace(':', '-')}-{args.episodes}.json"
             out = args.out or run_home(run) / EVALUATIONS_DIR / name
             write_atomic(out, lambda path, record=record: path.write_text(json.dumps(record, indent=2) + "\n"))
+            if locked:
+                scored = {"episodes": args.episodes, "evaluation": record["evaluation"]}
+                record_scoring(args.ledger, ledger, in_repository(run_home(run), top), args.release, commit, scored)
             rows[str(run)] = result
             print(f"wrote {out}", file=sys.stderr)
     except (ModelError, ValueError) as error:

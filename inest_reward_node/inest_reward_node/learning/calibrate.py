@@ -25,7 +25,7 @@ from .clips import Clip, clip_file_labels, load_clips, random_play, wrong_order_
 from .config import CalibrationConfig, PretrainConfig
 from .data import Demo, load_demos
 from .demo_negatives import demo_negatives
-from .stage_fitting import fit_stage_classifier, fit_stage_head
+from .stage_fitting import fit_stage_classifier, fit_stage_head, fit_stage_support
 from .task_stages import demo_stages, true_stages
 
 
@@ -188,6 +188,14 @@ def calibrate(
         partial.stage_classifier = fit_stage_classifier(
             embeddings, stages, scheme + 1, negatives + other_embeddings, negative_stages, calibration.classifier
         )
+        if calibration.stage_support_quantile:
+            partial.stage_support = fit_stage_support(
+                embeddings,
+                stages,
+                scheme + 1,
+                calibration.stage_support_quantile,
+                calibration.stage_support_references,
+            )
         if calibration.window_offsets:
             partial.stage_window = fit_stage_window(
                 embeddings, stages, scheme + 1, negatives + other_embeddings, negative_stages, calibration

@@ -70,9 +70,15 @@ class CalibrationConfig:
     # reordered demonstrations (demo_negatives.py), which need no labels of their own
     window_offsets: tuple[int, ...] = ()
     demo_negatives: int = 0
+    # the demonstrations' support of each stage (runtime/stage_support.py): the quantile of
+    # held-out demonstration frames' distances its radius covers; 0: none fitted
+    stage_support_quantile: float = 0.0
+    stage_support_references: int = 2000  # reference frames kept per stage, at most
 
     def __post_init__(self) -> None:
         check_choices(self)
+        if not 0.0 <= self.stage_support_quantile <= 1.0 or self.stage_support_references < 1:
+            raise ValueError("stage_support_quantile must be in [0, 1] and stage_support_references >= 1")
         if self.window_offsets:
             check_offsets(self.window_offsets)
         if self.demo_negatives < 0:

@@ -1,6 +1,7 @@
 """Fitting the stage evidence at calibration: the stage classifier on embeddings
 (runtime/stage_classifier.py) and the pixel stage head on frames (runtime/stage_head.py), on
-frames labelled with their true stage.
+frames labelled with their true stage, and the demonstrations' support of each stage
+(runtime/stage_support.py).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from inest_common.progress import track
 from ..runtime.encoders import frames_to_tensor, resize_frames
 from ..runtime.stage_classifier import StageClassifier
 from ..runtime.stage_head import StageHead, StageHeadConfig
+from ..runtime.stage_support import StageSupport
 
 BOUNDARY_FRAMES = 2  # frames either side of a stage change that count as its boundary
 
@@ -131,6 +133,36 @@ def fit_stage_head(
         optimiser.step()
     network.eval()
     return head
+
+
+def fit_stage_support(
+    demo_embeddings: Sequence[np.ndarray],
+    demo_stages: Sequence[np.ndarray],
+    num_stages: int,
+    quantile: float,
+    references: int,
+    held_out_every: int = 5,
+    seed: int = 0,
+) -> StageSupport:
+    """Per stage j >= 1: up to `references` of the demonstrations' stage-j frames, and a radius
+    covering `quantile` of the stage-j frames of every `held_out_every`-th demonstration, measured
+    to the nearest reference from the other demonstrations (so that a new frame like a
+    demonstration's falls inside)."""
+    rng = np.random.default_rng(seed)
+    held_out = np.arange(len(demo_embeddings)) % held_out_every == 0
+    kept, radii = [], []
+    for stage in range(1, num_stages):
+        frames = [emb[stages == stage] for emb, stages in zip(demo_embeddings, demo_stages, strict=True)]
+        fitted = np.concatenate([f for f, out in zip(frames, held_out, strict=True) if not out] or [np.zeros((0, 1))])
+        checked = np.concatenate([f for f, out in zip(frames, held_out, strict=True) if out] or [np.zeros((0, 1))])
+        if not len(fitted) or not len(checked):
+            raise ValueError(f"stage {stage} has too few demonstration frames to fit its support")
+        fitted = fitted[rng.permutation(len(fitted))[:references]]
+        distances = StageSupport([fitted], [np.inf], quantile).distances(checked)[:, 1]
+        radii.append(float(np.quantile(distances, quantile)))
+        everything = np.concatenate(frames)
+        kept.append(everything[rng.permutation(len(everything))[:references]])
+    return StageSupport(kept, radii, quantile)
 
 
 def boundary_frames(stages: list[np.ndarray]) -> np.ndarray:

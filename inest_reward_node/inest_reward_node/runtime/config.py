@@ -57,6 +57,9 @@ class RewardConfig:
     instant_confidence: float = 0.9
     # the weighted novelty bonus (after the post-switch boost) is clipped to at most this; None: no clip
     intrinsic_cap: float | None = None
+    # a frame is evidence of a stage above the completed ones only within the demonstrations'
+    # support of that stage (stage_support.py; the model needs one fitted at calibration)
+    stage_support: bool = False
     # none: each frame's stage evidence alone; forward: a causal forward filter over the stages (stage_filter.py)
     stage_filter: Literal[STAGE_FILTERS] = "none"
     # the stage filter's chance per frame of one stage up

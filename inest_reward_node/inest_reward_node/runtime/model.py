@@ -37,6 +37,8 @@ from .shaping import ShapingConfig
 from .stage_classifier import StageClassifier
 from .stage_head import WEIGHTS_FILE as STAGE_HEADS_FILE
 from .stage_head import StageHead
+from .stage_support import WEIGHTS_FILE as STAGE_SUPPORT_FILE
+from .stage_support import StageSupport
 from .stage_window import StageWindow
 
 MODEL_FORMAT = "inest-reward-model"
@@ -116,6 +118,7 @@ class SubtaskGoals:
     start_embeddings: np.ndarray | None = None  # (subtasks, D) mean embedding where each subtask starts
     stage_head: StageHead | None = None  # P(true stage | frame) from pixels; None: an older model
     stage_window: StageWindow | None = None  # P(true stage | a causal window of embeddings); None: not fitted
+    stage_support: StageSupport | None = None  # the demonstrations' support of each stage; None: not fitted
 
     def to_dict(self) -> dict[str, Any]:
         data: dict[str, Any] = {
@@ -133,6 +136,8 @@ class SubtaskGoals:
             data["stage_head"] = self.stage_head.to_dict()
         if self.stage_window is not None:
             data["stage_window"] = self.stage_window.to_dict()
+        if self.stage_support is not None:
+            data["stage_support"] = self.stage_support.to_dict()
         return data
 
     @classmethod
@@ -145,6 +150,7 @@ class SubtaskGoals:
         start_embeddings = data.get("start_embeddings")
         head = data.get("stage_head")
         window = data.get("stage_window")
+        support = data.get("stage_support")
         return cls(
             goals,
             list(data["thresholds"]),
@@ -154,6 +160,7 @@ class SubtaskGoals:
             None if start_embeddings is None else np.asarray(start_embeddings, dtype=np.float32),
             None if head is None else StageHead.from_dict(head),  # untrained until load_model fills it
             None if window is None else StageWindow.from_dict(window),
+            None if support is None else StageSupport.from_dict(support),
         )
 
     def required(self, value: Any, missing: str) -> Any:
@@ -180,6 +187,12 @@ class SubtaskGoals:
             self.stage_head,
             "pixel stage head for its {subtasks}-subtask goals (not fitted: "
             "inest-pretrain --stage-head-subtasks, or calibrated before the head existed)",
+        )
+
+    def require_stage_support(self) -> StageSupport:
+        return self.required(
+            self.stage_support,
+            "stage support for its {subtasks}-subtask goals (not fitted: inest-pretrain --stage-support-quantile)",
         )
 
     def require_stage_window(self) -> StageWindow:
@@ -336,6 +349,14 @@ def save_model(folder: str | Path, network: nn.Module, metadata: ModelMetadata) 
     }
     if heads:
         write_atomic(folder / STAGE_HEADS_FILE, lambda path: save_file(heads, str(path)))
+    support = {
+        name: torch.from_numpy(np.ascontiguousarray(reference))
+        for scheme, goals in metadata.subtasks.items()
+        if goals.stage_support is not None
+        for name, reference in goals.stage_support.tensors(scheme).items()
+    }
+    if support:
+        write_atomic(folder / STAGE_SUPPORT_FILE, lambda path: save_file(support, str(path)))
     document = {"format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION, **metadata.to_dict()}
     write_atomic(folder / MODEL_FILE, lambda path: path.write_text(json.dumps(document, indent=2) + "\n"))
 
@@ -429,4 +450,12 @@ def load_model(
                 )
         except (FileNotFoundError, SafetensorError, RuntimeError) as error:
             raise ModelError(f"cannot load the stage heads from {folder / STAGE_HEADS_FILE}: {error}") from error
+    supports = {scheme: goals.stage_support for scheme, goals in metadata.subtasks.items() if goals.stage_support}
+    if supports:
+        try:
+            tensors = {name: tensor.numpy() for name, tensor in load_file(str(folder / STAGE_SUPPORT_FILE)).items()}
+            for scheme, support in supports.items():
+                support.fill(scheme, tensors)
+        except (FileNotFoundError, SafetensorError, KeyError) as error:
+            raise ModelError(f"cannot load the stage support from {folder / STAGE_SUPPORT_FILE}: {error}") from error
     return RewardModel(network, metadata)

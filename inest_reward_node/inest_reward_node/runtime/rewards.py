@@ -25,6 +25,7 @@ from .reward_parts import RewardParts
 from .shaping import segment_closeness
 from .stage_classifier import at_least as at_least_of
 from .stage_filter import StageFilter, exactly
+from .stage_support import gate
 from .trackers import TRACKERS, Evidence, StageTracker, ToldStage
 
 THESIS_REWARD = RewardConfig(shaping="thesis", tracker="threshold")  # the reward as the thesis has it
@@ -156,6 +157,9 @@ class RewardScorer:
             raise ValueError(
                 f"stage_filter {config.stage_filter!r} filters stage evidence; the {config.tracker} tracker reads none"
             )
+        if config.stage_support and self.evidence is None:
+            raise ValueError(f"stage_support gates stage evidence; the {config.tracker} tracker reads none")
+        self.support = self.goals.require_stage_support() if config.stage_support else None
         self.trackers: list[StageTracker] = [self.new_tracker() for _ in range(num_envs)]
         self.filters = [self.new_filter() for _ in range(num_envs)]
         self.histories = [self.window.history() if self.window else None for _ in range(num_envs)]
@@ -173,6 +177,8 @@ class RewardScorer:
         self.goals = self.reward.goals = goals
         if self.classifier is not None:
             self.classifier = goals.require_stage_classifier()
+        if self.support is not None:
+            self.support = goals.require_stage_support()
         for tracker in self.trackers:
             tracker.use_thresholds(goals.thresholds)
 
@@ -290,6 +296,7 @@ class RewardScorer:
                 raise ValueError("the pixel stage head's tracker needs every frame's stage_evidence (score)")
             at_least = stage_evidence
         told = self.told_stages(embeddings, known_stages)
+        supported = None if self.support is None else self.support.supported(embeddings)
         before, subtask, completed, since_switch = (np.zeros(count, int) for _ in range(4))
         was_done, done, switched = (np.zeros(count, bool) for _ in range(3))
         confidence = np.full(count, np.nan if told is None else 1.0)
@@ -301,6 +308,8 @@ class RewardScorer:
             if self.window is not None:
                 features = self.histories[env].push(embeddings[row])
                 evidence = self.window.classifier.at_least(features[None])[0]
+            if supported is not None:
+                evidence = gate(evidence, supported[row], tracker.completed)
             if stage_filter is not None:
                 evidence = at_least_of(stage_filter.update(exactly(evidence))[None])[0]
             change = tracker.step(

@@ -112,6 +112,8 @@ def test_the_locked_test_set_is_scored_once_per_run_for_a_release_with_its_commi
     assert reevaluate.main([*locked, "--release", "v1"]) == 2
     assert "commit first" in capsys.readouterr().err and not ledger.exists()
     (repo / "notes.txt").write_text("v1\n")
+    assert reevaluate.main([str(run / "policy"), *locked, "--release", "v1"]) == 2  # the same run twice
+    assert "named twice" in capsys.readouterr().err and not ledger.exists()
     assert reevaluate.main([*locked, "--release", "v1"]) == 0
     entry = json.loads(ledger.read_text())["entries"][0]
     assert entry["release"] == "v1" and entry["commit"] == head and entry["run"] == run.resolve().as_posix()

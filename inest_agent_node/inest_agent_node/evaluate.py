@@ -9,7 +9,7 @@ work). `legacy` are the layouts every run before the split was evaluated on (10,
 run's seed + i), on which its settings were also chosen. `locked` is the test set a release's
 headline rows are scored on once each (`inest-evaluate --layouts locked --release NAME`, which
 records the commit that scored them); `layouts` refuses it, and any seed range reaching into it,
-to everything else.
+to everything else, and so does inest-record-clips (`check_not_locked`).
 """
 
 from __future__ import annotations
@@ -61,12 +61,18 @@ def layouts(spec: str, run_seed: int = 0, release: bool = False) -> Layouts:
         return Layouts(spec, LAYOUT_SETS[spec] + (run_seed if spec == "legacy" else 0))
     chosen = Layouts(LOCKED, LOCKED_SEEDS.start, len(LOCKED_SEEDS)) if spec == LOCKED else seed_range(spec)
     assert chosen.size is not None
-    if not release and chosen.first < LOCKED_SEEDS.stop and LOCKED_SEEDS.start < chosen.first + chosen.size:
+    if not release:
+        check_not_locked(chosen.first, chosen.size, f"layouts {spec!r}")
+    return chosen
+
+
+def check_not_locked(first: int, count: int, what: str) -> None:
+    """Refuse layout seeds first .. first + count - 1 that reach into the locked test set."""
+    if first < LOCKED_SEEDS.stop and LOCKED_SEEDS.start < first + count:
         raise ValueError(
-            f"layouts {spec!r} are the locked test set's ({LOCKED_SEEDS.start}:{LOCKED_SEEDS.stop}): "
+            f"{what} reach into the locked test set's layouts ({LOCKED_SEEDS.start}:{LOCKED_SEEDS.stop}): "
             "they are scored once per run, for a release, by inest-evaluate --layouts locked --release NAME"
         )
-    return chosen
 
 
 VALIDATION, TEST = layouts("validation"), layouts("test")

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 from inest_agent_node.envs import FRAME_KEY, TRUE_PROGRESS, build_env
+from inest_agent_node.evaluate import check_not_locked
 from inest_agent_node.learners import configure_jax_threads, learner_class
 from inest_agent_node.rewards import build_reward
 from inest_agent_node.train import has_checkpoint, new_learner, restore_learner
@@ -98,6 +99,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error(f"--episodes must be >= 1, got {args.episodes}")
+    try:
+        check_not_locked(args.seed, args.episodes, "--seed and --episodes")
+    except ValueError as error:
+        parser.error(str(error))
     if not has_checkpoint(args.run):
         print(f"inest-record-clips: {args.run} holds no checkpoint (not an inest-train run folder?)", file=sys.stderr)
         return 2

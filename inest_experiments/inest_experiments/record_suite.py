@@ -12,7 +12,6 @@ before it was kept play their mean actions (the part's `policies` entries say wh
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -35,24 +34,24 @@ from inest_reward_node.learning.exploit_suite import (
 from inest_reward_node.runtime.model import ModelError
 from stable_baselines3.common.vec_env import VecEnv
 
+from inest_agent_node.config import TrainConfig
+
 from .record_clips import RolloutRecorder
-from .reevaluate import MAX_ENVS, policy_and_env, run_home
+from .reevaluate import MAX_ENVS, policy_and_env
 
 POSES = "body_poses"
 
 
-def describe_policy(run: Path, steps: int, sampled: bool, mean_score: float) -> dict[str, Any]:
+def describe_policy(config: TrainConfig, steps: int, sampled: bool, mean_score: float) -> dict[str, Any]:
     """What a suite reader needs to know of a policy: the reward it learned from and how well it did here."""
-    config = json.loads((run_home(run) / "config.json").read_text())
-    learned = config.get("learned_reward", {})
     return {
-        "reward": config["reward"],
-        "model": config.get("model") if config["reward"] != "env" else None,
-        "tracker": learned.get("tracker"),
-        "stage_evidence": learned.get("stage_evidence"),
-        "intrinsic": config["intrinsic"]["mode"],
-        "observation": config["observation"],
-        "seed": config["seed"],
+        "reward": config.reward,
+        "model": config.model if config.reward != "env" else None,
+        "tracker": config.learned_reward.tracker,
+        "stage_evidence": config.learned_reward.stage_evidence,
+        "intrinsic": config.intrinsic.mode,
+        "observation": config.observation,
+        "seed": config.seed,
         "policy_steps": steps,
         "actions": "sampled, as in training" if sampled else "mean (exported without its log std)",
         "mean_score_here": round(mean_score, 4),
@@ -79,7 +78,7 @@ def record_policy(run: Path, episodes: int, first_seed: int) -> tuple[list[Suite
         SuiteEpisode(str(run), first_seed + index, poses.astype("float32"), progress, held)
         for index, (poses, progress, held) in enumerate(recorders[0].episodes[:episodes])
     ]
-    return rollouts, describe_policy(run, policy.info["steps"], sampled, result.mean_score)
+    return rollouts, describe_policy(policy.config, policy.info["steps"], sampled, result.mean_score)
 
 
 def main(argv: list[str] | None = None) -> int:

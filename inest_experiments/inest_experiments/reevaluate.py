@@ -28,7 +28,16 @@ from inest_reward_node.learning.stage_refit import REFIT_MODEL_DIR
 from inest_reward_node.runtime.model import ModelError
 from stable_baselines3.common.vec_env import VecEnv
 
-from .release_ledger import LEDGER, check_unscored, in_repository, read_ledger, repository, scoring_commit
+from .release_ledger import (
+    LEDGER,
+    check_distinct,
+    check_unscored,
+    default_ledger,
+    in_repository,
+    read_ledger,
+    repository,
+    scoring_commit,
+)
 from .release_ledger import record as record_scoring
 
 EVALUATIONS_DIR = "evaluations"
@@ -60,9 +69,13 @@ def policy_and_env(
 
 def reevaluate(run: Path, spec: str, episodes: int, release: bool = False) -> tuple[EvalResult, dict]:
     """The run's exported policy on the layouts `spec` (inest_agent_node.evaluate.layouts, of the run's seed)."""
-    on = layouts(spec, load_policy(run).config.seed, release)
-    on.check(episodes)
     policy, env = policy_and_env(run, min(MAX_ENVS, episodes))
+    try:
+        on = layouts(spec, policy.config.seed, release)
+        on.check(episodes)
+    except ValueError:
+        env.close()
+        raise
     try:
         start = time.monotonic()
         result = evaluate_vec_env(env, policy.predict, episodes, on)
@@ -82,12 +95,16 @@ def main(argv: list[str] | None = None) -> int:
     parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("runs", nargs="+", type=Path, help="run folders (with policy/) or policy folders")
     parser.add_argument(
-        "--layouts", default="test", help="test (default), validation, legacy (the run's earlier ones) or FIRST:STOP"
+        "--layouts",
+        default="test",
+        help="test (default), validation, legacy (the run's earlier ones), FIRST:STOP, or locked with --release",
     )
     parser.add_argument("--episodes", type=int, default=150)
     parser.add_argument("--out", type=Path, help="the evaluation's JSON file (one run only)")
     parser.add_argument("--release", help="with --layouts locked: the release these headline rows are for")
-    parser.add_argument("--ledger", type=Path, default=LEDGER, help="the locked set's ledger (default %(default)s)")
+    parser.add_argument(
+        "--ledger", type=Path, help=f"the locked set's ledger (default: {LEDGER} of the git repository you are in)"
+    )
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error("--episodes must be at least 1")
@@ -102,8 +119,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         layouts(args.layouts, release=locked)  # a bad name fails before any model loads
         if locked:  # every run unscored and the code committed, before any scoring
-            commit, ledger = scoring_commit(args.ledger), read_ledger(args.ledger)
-            top = repository(args.ledger)
+            ledger_path = args.ledger or default_ledger()
+            commit, ledger = scoring_commit(ledger_path), read_ledger(ledger_path)
+            top = repository(ledger_path)
+            check_distinct([in_repository(run_home(run), top) for run in args.runs])
             for run in args.runs:
                 check_unscored(ledger, in_repository(run_home(run), top))
         for run in args.runs:
@@ -113,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
             write_atomic(out, lambda path, record=record: path.write_text(json.dumps(record, indent=2) + "\n"))
             if locked:
                 scored = {"episodes": args.episodes, "evaluation": record["evaluation"]}
-                record_scoring(args.ledger, ledger, in_repository(run_home(run), top), args.release, commit, scored)
+                record_scoring(ledger_path, ledger, in_repository(run_home(run), top), args.release, commit, scored)
             rows[str(run)] = result
             print(f"wrote {out}", file=sys.stderr)
     except (ModelError, ValueError) as error:

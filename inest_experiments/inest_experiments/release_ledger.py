@@ -3,9 +3,10 @@ the release it was for and the commit of the code that scored it.
 
 Why: a test set that every run is scored on while the work goes on informs its direction; one that
 is looked at once per result, and says when and by what code, still measures what a release
-claims. The ledger is a JSON file in the repository (by default `results/locked-test/ledger.json`);
-the commit it records is that repository's HEAD, which must hold every change but the ledger's own
-(commit first, then score).
+claims. The ledger is a JSON file in the repository (by default `results/locked-test/ledger.json`
+of the git repository the command runs in, whatever folder in it); the commit it records is that
+repository's HEAD, which must hold every tracked change but the ledger's own (commit first, then
+score; files git does not track are not looked at).
 """
 
 from __future__ import annotations
@@ -50,11 +51,21 @@ def scoring_commit(ledger: Path) -> str:
     """HEAD of the repository that holds the ledger; refused while anything tracked but the ledger has changed."""
     top = repository(ledger)
     own = in_repository(ledger, top)
-    changed = [line[3:] for line in _git(top, "status", "--porcelain", "--untracked-files=no").splitlines()]
-    changed = [path for path in changed if path != own]
+    status = _git(top, "status", "--porcelain", "-z", "--untracked-files=no").split("\0")
+    changed = [entry[3:] for entry in status if len(entry) > 3 and entry[3:] != own]
     if changed:
         raise LedgerError(f"commit first: the ledger records the commit that scored, and {changed[0]} has changes")
     return _git(top, "rev-parse", "HEAD").strip()
+
+
+def default_ledger() -> Path:
+    """LEDGER in the git repository of the working folder, from any folder in it."""
+    return repository(Path.cwd() / "ledger") / LEDGER
+
+
+def check_distinct(names: list[str]) -> None:
+    if len(set(names)) != len(names):
+        raise LedgerError("a run is named twice: the locked set is scored once per run")
 
 
 def read_ledger(ledger: Path) -> dict[str, Any]:

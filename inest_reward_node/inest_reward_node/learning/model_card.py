@@ -16,11 +16,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from inest_common.files import write_atomic
+from inest_common.files import sha256_of, write_atomic
 from inest_common.settings import OneLineParser
 
 from ..runtime.config import RewardConfig
-from ..runtime.model import ModelError, load_model
+from ..runtime.model import MODEL_FILE, ModelError, load_model, model_folder
 from .calibrate import describe_supervision, recorded_supervision
 from .quality import subtask_name
 
@@ -73,7 +73,12 @@ def card(model_dir: str, score_path: Path, quality_path: Path | None) -> str:
     quality = read_json(quality_path, "an inest-reward-quality report") if quality_path else None
     if "schemes" not in score or "part" not in score:
         raise ModelError(f"{score_path}: not an inest-exploit-suite result (no part or schemes)")
-    if Path(score.get("model", "")).resolve() != Path(model_dir).resolve():
+    same = (
+        score["model_sha256"] == sha256_of(model_folder(model_dir) / MODEL_FILE)
+        if "model_sha256" in score
+        else Path(score.get("model", "")).resolve() == Path(model_dir).resolve()  # results written before the hash
+    )
+    if not same:
         raise ModelError(f"{score_path} scores {score.get('model')}, not {model_dir}")
     metadata = model.metadata
     lines = [
@@ -93,7 +98,7 @@ def card(model_dir: str, score_path: Path, quality_path: Path | None) -> str:
     ]
     for scheme, row in score["schemes"].items():
         unplaced = _percent(row["unplaced_claim_any"])
-        lines.append(f"{scheme} subtasks: an unplaced claim of any block in {unplaced} of them.")
+        lines.append(f"{scheme} subtasks: an unplaced claim of any subtask in {unplaced} of them.")
     lines += ["", *claims_table(score, quality), ""]
     return "\n".join(lines)
 

@@ -257,18 +257,20 @@ def suite_report(
 ) -> dict[str, Any]:
     """Per scheme, the claims of the scheme's default reward on the exploit suite `part`
     (exploit_suite.summarise_claims), every episode seen through the model's cameras and then
-    SETTLE_FRAMES copies of its last frame, as demonstrations are replayed."""
+    SETTLE_FRAMES copies of its last frame, as demonstrations are replayed; one episode in memory at a time."""
     camera = stage_camera(model, schemes, scorer_options)
-    clips = part.clips(model.view, model.image_size, SETTLE_FRAMES)
-    seen = clips if camera is None else part.clips(camera, model.image_size, SETTLE_FRAMES)
-    embeddings = [model.embed(clip.frames) for clip in track(clips, desc="exploit suite", disable=not progress_bar)]
+    rows: dict[int, list[dict[str, np.ndarray]]] = {scheme: [] for scheme in schemes}
+    for episode in track(part.episodes, desc="exploit suite", disable=not progress_bar):
+        clip = part.clip(episode, model.view, model.image_size, SETTLE_FRAMES)
+        seen = clip if camera is None else part.clip(episode, camera, model.image_size, SETTLE_FRAMES)
+        embeddings = model.embed(clip.frames)
+        for scheme in schemes:
+            variant = default_variant(model, scheme)
+            events = negative_events(model, [clip], [embeddings], scheme, variant, scorer_options, [seen])[0]
+            rows[scheme].append(claims(events, clip, scheme))
     policies = [episode.policy for episode in part.episodes]
-    report: dict[str, Any] = {**part.describe(), "schemes": {}}
-    for scheme in schemes:
-        events = negative_events(model, clips, embeddings, scheme, default_variant(model, scheme), scorer_options, seen)
-        rows = [claims(row, clip, scheme) for row, clip in zip(events, clips, strict=True)]
-        report["schemes"][str(scheme)] = summarise_claims(rows, policies)
-    return report
+    schemes_report = {str(scheme): summarise_claims(rows[scheme], policies) for scheme in schemes}
+    return {**part.describe(), "schemes": schemes_report}
 
 
 def format_suite(suite: dict[str, Any]) -> list[str]:

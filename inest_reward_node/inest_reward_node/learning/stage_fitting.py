@@ -144,10 +144,11 @@ def fit_stage_support(
     held_out_every: int = 5,
     seed: int = 0,
 ) -> StageSupport:
-    """Per stage j >= 1: up to `references` of the demonstrations' stage-j frames, and a radius
-    covering `quantile` of the stage-j frames of every `held_out_every`-th demonstration, measured
-    to the nearest reference from the other demonstrations (so that a new frame like a
-    demonstration's falls inside)."""
+    """Per stage j >= 1: a radius covering `quantile` of the stage-j frames of every
+    `held_out_every`-th demonstration, measured to the nearest of up to `references` stage-j frames
+    of the other demonstrations (so that a new frame like a demonstration's falls inside); then up
+    to `references` stage-j frames of all the demonstrations, held-out ones included, are kept as
+    the references (a little more than `quantile` of new demonstration frames fall inside)."""
     rng = np.random.default_rng(seed)
     held_out = np.arange(len(demo_embeddings)) % held_out_every == 0
     kept, radii = [], []

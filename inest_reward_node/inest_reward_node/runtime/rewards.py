@@ -160,6 +160,8 @@ class RewardScorer:
         if config.stage_support and self.evidence is None:
             raise ValueError(f"stage_support gates stage evidence; the {config.tracker} tracker reads none")
         self.support = self.goals.require_stage_support() if config.stage_support else None
+        if self.support is not None and self.support.num_stages != self.num_subtasks + 1:
+            raise ModelError(f"the stage support covers {self.support.num_stages} stages, not {self.num_subtasks + 1}")
         self.trackers: list[StageTracker] = [self.new_tracker() for _ in range(num_envs)]
         self.filters = [self.new_filter() for _ in range(num_envs)]
         self.histories = [self.window.history() if self.window else None for _ in range(num_envs)]

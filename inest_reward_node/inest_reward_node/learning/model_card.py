@@ -109,10 +109,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--suite-score", type=Path, required=True, help="inest-exploit-suite --out FILE of this model")
     parser.add_argument("--quality", type=Path, help="inest-reward-quality's report.json of this model")
     parser.add_argument("--out", type=Path, help=f"where to write the card (default MODEL/{CARD_FILE})")
+    parser.add_argument("--overwrite", action="store_true", help="replace a card that is already there")
     args = parser.parse_args(argv)
+    out = args.out or Path(args.model) / CARD_FILE
+    if out.exists() and not args.overwrite:
+        print(f"inest-model-card: {out} exists (--overwrite replaces it)", file=sys.stderr)
+        return 2
     try:
         text = card(args.model, args.suite_score, args.quality)
-        out = args.out or Path(args.model) / CARD_FILE
         write_atomic(out, lambda path: path.write_text(text))
     except (ModelError, OSError) as error:
         print(f"inest-model-card: {error}", file=sys.stderr)

@@ -99,7 +99,11 @@ def card(model_dir: str, score_path: Path, quality_path: Path | None) -> str:
     for scheme, row in score["schemes"].items():
         unplaced = _percent(row["unplaced_claim_any"])
         lines.append(f"{scheme} subtasks: an unplaced claim of any subtask in {unplaced} of them.")
+    played = score.get("play", {}).get("episodes")
     lines += ["", *claims_table(score, quality), ""]
+    if played:
+        one = 100 / played
+        lines += [f"False completions on {played} random and {played} wrong-order episodes (one is {one:.1f} %).", ""]
     return "\n".join(lines)
 
 

@@ -139,6 +139,13 @@ def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, caps
     assert "oracle/seed0 was trained with other settings (observation)" in capsys.readouterr().err
 
 
+def test_a_headline_method_runs_its_own_seeds():
+    from inest_experiments.config import GridConfig
+
+    grid = GridConfig.from_dict({"methods": {"oracle": {"seeds": [0, 1, 2, 3, 4]}, "other": {}}, "seeds": [0, 1, 2]})
+    assert grid.seeds_of("oracle") == (0, 1, 2, 3, 4) and grid.seeds_of("other") == (0, 1, 2)
+
+
 @pytest.mark.parametrize(
     ("grid", "extra", "message"),
     [
@@ -152,6 +159,7 @@ def test_a_failed_cell_is_named_with_its_log_and_the_others_go_on(tmp_path, caps
         ("methods: {x: {args: [--reward, xirl]}}\n", [], "method x: the xirl reward needs a reward model folder"),
         ("methods: {x: {args: [--reward, xirl]}}\nconfig: t.yaml\n", [], "method x: no reward model at"),
         ("methods: {oracle: {}}\nseeds: [1, 1]\n", [], "seeds must differ"),
+        ("methods: {oracle: {seeds: [2, -1]}}\n", [], "method oracle: seeds must be a non-empty list"),
         ("methods: {oracle: {}}\ndemos: nowhere\n", [], "no demonstration dataset at"),
         ("methods: {oracle: {}}\nout: [a]\n", [], "out must be a path"),
         ("methods: {oracle: {reference: {score: 73}}}\n", [], "reference score must be a number in [0, 1]"),
@@ -288,13 +296,13 @@ def test_report_shows_what_each_reward_paid_for_from_its_first_to_its_last_windo
     curve = [[100, 0.1, 0.0]]
     first = {"reward_per_step": -0.7, "shaping_per_step": -0.7, "bonus_per_step": 0.0, "intrinsic_per_step": 0.0}
     first |= {"final_progress_mean": 0.04, "unearned_completion_rate": 0.0, "early_claim_rate": 0.0}
-    first |= {"unplaced_claim_rate": 0.0, "missed_rate": 0.0}
+    first |= {"unplaced_claim_rate": 0.0, "never_placed_claim_rate": 0.0, "missed_rate": 0.0}
     for seed, (shaping, unearned) in enumerate([(-0.1, 0.2), (-0.2, 0.3)]):
         write_run(tmp_path, "hacked", seed, 0.0, curve)
         results_file = tmp_path / "hacked" / f"seed{seed}" / "results.json"
         last = first | {"reward_per_step": shaping, "shaping_per_step": shaping, "final_progress_mean": 0.0}
         last |= {"unearned_completion_rate": unearned, "early_claim_rate": 0.1, "unplaced_claim_rate": unearned - 0.1}
-        last |= {"missed_rate": 0.05}  # and missed a block placed
+        last |= {"never_placed_claim_rate": unearned - 0.15, "missed_rate": 0.05}  # and missed a block placed
         results_file.write_text(
             json.dumps(json.loads(results_file.read_text()) | {"reward_diagnostics": [first, last]})
         )
@@ -306,8 +314,8 @@ def test_report_shows_what_each_reward_paid_for_from_its_first_to_its_last_windo
     lines = (tmp_path / "report.md").read_text().splitlines()
     # the reward rose while the blocks placed fell to none, and the stage claimed unplaced blocks
     hacked = "| hacked | -0.7 → -0.15 | -0.7 → -0.15 | 0 → 0 | 0 → 0 | 0.04 → 0 |"
-    assert f"{hacked} 0 % → 25 % | 0 % → 10 % | 0 % → 15 % | 0 % → 5 % |" in lines
-    assert "| oracle | 0.1 → 0.1 | | | | 1 → 1 | | | | |" in lines  # the environment's reward has no parts
+    assert f"{hacked} 0 % → 25 % | 0 % → 10 % | 0 % → 15 % | 0 % → 10 % | 0 % → 5 % |" in lines
+    assert "| oracle | 0.1 → 0.1 | | | | 1 → 1 | | | | | |" in lines  # the environment's reward has no parts
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert [row["reward_diagnostics"]["last"]["shaping_per_step"] for row in summary["runs"][:2]] == [-0.1, -0.2]
 

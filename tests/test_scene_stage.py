@@ -249,3 +249,37 @@ def test_the_reward_node_scores_every_paired_frame_after_a_clock_jump(graph, tin
     assert received["unpaired_total"] == 0 and received["stage_unpaired_total"] == 1
     log = graph.log("reward")
     assert "allo camera's clock jumped back" in log and "no allo camera frame" not in log, log
+
+
+def test_the_scene_head_fits_on_file_labelled_clips_of_its_own_camera(tiny_tcc_run, tmp_path, capsys):
+    from inest_reward_node.learning.calibrate import stage_head_episodes, supervision
+    from inest_reward_node.learning.clips import random_play, save_clips
+
+    config, run_dir = tiny_tcc_run
+    size = config.encoder.image_size
+    scene = tmp_path / "scene.npz"
+    save_clips(scene, random_play("allo", size, 2), "allo", "two random-play episodes", labelled_by="file")
+    head = dataclasses.replace(config.calibration.stage_head, view="allo")
+    calibration = CalibrationConfig(
+        random_episodes=0,
+        wrong_order_episodes=0,
+        stage_head=head,
+        stage_head_subtasks=(3,),
+        stage_head_clips=(str(scene),),
+    )
+    with_clips = dataclasses.replace(config, calibration=calibration)
+    demos = load_demos(config.dataset, "train", "ego", size, 1, progress_bar=False)
+    labelled, played = stage_head_episodes(with_clips, demos, [])
+    assert len(labelled) == 1 and len(played) == 2 and played[0].frames.shape[1:] == (size, size, 3)
+    record = supervision(with_clips, demonstrations=1)
+    assert record["negatives"][f"stage-head-clips:{scene}"] == {"episodes": 2, "labelled_by": "file"}
+    assert record["labelled_episodes"] == 2 and record["simulator_labelled_episodes"] == 0
+    # a clip file of another camera is refused before any work, in one line
+    ego = tmp_path / "ego.npz"
+    save_clips(ego, random_play("ego", size, 1), "ego", "one random-play episode", labelled_by="file")
+    argv = [config.dataset, "--out", str(tmp_path / "refit"), "--recalibrate", str(run_dir / "model")]
+    argv += ["--stage-head-view", "allo", "--stage-head-clips", str(ego)]
+    assert pretrain.main(argv) == 2
+    error = capsys.readouterr().err
+    assert "clips of the 'ego' view; the model uses 'allo'" in error and error.count("\n") == 1
+    assert not (tmp_path / "refit" / "model").exists()

@@ -116,7 +116,7 @@ def test_a_stage_claimed_for_a_block_not_in_the_goal_is_a_false_completion():
     assert diagnostics.summary() == {}  # cleared
 
 
-def test_a_claim_its_block_earns_within_a_few_steps_is_early_a_later_or_never_one_unplaced():
+def test_a_claim_its_block_earns_within_a_few_steps_is_early_a_later_or_never_one_unplaced_a_never_one_never_placed():
     diagnostics = RewardDiagnostics(num_envs=3, num_subtasks=3)
     # env 0 claims red two steps early; env 1 claims it and never places it; env 2 places it six steps late
     trajectory = [((0, 1), (0, 1), (0, 1)), ((0, 1), (0, 1), (0, 1)), ((1, 1), (0, 1), (0, 1))]
@@ -133,6 +133,9 @@ def test_a_claim_its_block_earns_within_a_few_steps_is_early_a_later_or_never_on
     assert summary["early_claim_rate"] == pytest.approx(1 / 3) and summary["unplaced_claim_rate"] == pytest.approx(
         2 / 3
     )
+    assert summary["never_placed_claim_rate"] == pytest.approx(1 / 3)  # env 1's: env 2 placed its block in the end
+    assert summary["ends_overclaimed_rate"] == pytest.approx(1 / 3)  # env 1 ends paid for red
+    assert summary["overpaid_step_per_step"] == pytest.approx((2 + 7 + 6) / 21)  # as unearned: no block pushed out
     assert (summary["shaping_share"], summary["bonus_share"], summary["intrinsic_share"]) == (0.25, 0.5, 0.25)
     # every step of every env until its block is placed was paid in a stage claimed early
     assert summary["unearned_step_per_step"] == pytest.approx((2 + 7 + 6) / 21)

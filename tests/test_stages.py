@@ -160,6 +160,22 @@ def test_the_confirmed_tracker_confirms_clear_evidence_at_once_and_weak_evidence
     assert RewardScorer(line_model(hold_steps=2), scheme=3).new_tracker().instant == 0.9  # the default
 
 
+def test_the_confirmed_tracker_takes_back_a_claim_its_stage_evidence_stops_backing():
+    says_1, denies_1, unsure = np.array([1.0, 0.95, 0.0]), np.array([1.0, 0.05, 0.0]), np.array([1.0, 0.3, 0.0])
+    settings = ConfirmSettings(0.5, 5, 0, 0.9, retract=0.2, retract_steps=3)
+    tracker = ConfirmedTracker([-0.02, -0.02], 2, settings)
+    assert [tracker.step(seen(AT_GOAL_0, says_1)) for _ in range(2)] == [0, 1]
+    # moved on: the embedding no longer reopens it, the stage evidence denies block 1; an unsure frame breaks the streak
+    frames = [denies_1, denies_1, unsure, denies_1, denies_1, denies_1]
+    assert [tracker.step(seen(MOVED_ON, at_least)) for at_least in frames] == [0, 0, 0, 0, 0, -1]
+    # off by default: the same frames leave the claim standing
+    latched = confirmed(2, 5, instant=0.9)
+    assert [latched.step(seen(AT_GOAL_0, says_1)) for _ in range(2)] == [0, 1]
+    assert [latched.step(seen(MOVED_ON, denies_1)) for _ in range(10)] == [0] * 10 and latched.completed == 1
+    with pytest.raises(ValueError, match="retract_confidence"):
+        RewardConfig(retract_confidence=0.5)
+
+
 def test_the_confirmed_tracker_reopens_in_the_scorer():
     # it completes once the threshold test has held twice and the classifier's streak follows (its
     # instant path off; test_the_confirmed_tracker_confirms_clear_evidence_at_once... covers it)

@@ -37,6 +37,7 @@ class EpisodeTrace:
     pending: dict[int, int] = field(default_factory=dict)
     early_claim: bool = False  # a claim its block then earned within EARLY_CLAIM_STEPS
     unplaced_claim: bool = False  # a claim its block did not earn within EARLY_CLAIM_STEPS
+    never_placed_claim: bool = False  # a claim its block did not earn before the episode ended
 
     def claim(self, claimed: int, progress: int) -> None:
         """One step's claimed blocks against the blocks placed in order."""
@@ -57,6 +58,7 @@ class EpisodeTrace:
     def end(self) -> None:
         """The episode ended: a claim still waiting for its block was never earned."""
         self.unplaced_claim |= bool(self.pending)
+        self.never_placed_claim = bool(self.pending)
 
 
 @dataclass
@@ -69,10 +71,14 @@ class RewardDiagnostics:
     pushed back out), an unearned completion (the stage claimed more blocks than had been
     placed at any step so far: paid for something that never happened), split into an early
     claim (the block was then placed within EARLY_CLAIM_STEPS: the tracker was a frame or two
-    ahead) and an unplaced claim (it was not: the reward paid for a block not placed), a miss (the
-    true progress reached more blocks than the stage ever claimed). Each part's share of the
+    ahead) and an unplaced claim (it was not: the reward paid for a block not placed), among these
+    a never-placed claim (its block was not placed before the episode ended either: the exploit
+    suite's unplaced claim, exploit_suite.claims), a miss (the
+    true progress reached more blocks than the stage ever claimed), and an episode that ends
+    overclaimed (its last step paid for a block not in the goal then). Each part's share of the
     learned reward: its per-step mean's size over the sum of all three's. Per step also the
-    share of steps spent in a stage claimed before its blocks were placed (`unearned_step`), and
+    share of steps spent in a stage claimed before its blocks were placed (`unearned_step`), or
+    paid for more blocks than the goal then holds (`overpaid_step`, the exploit suite's pay), and
     the intrinsic bonus paid on those steps and on the others (`intrinsic_unearned`,
     `intrinsic_earned`): whether the novelty bonus pays for a falsely claimed stage."""
 
@@ -102,6 +108,7 @@ class RewardDiagnostics:
             if learned:  # where the novelty bonus pays: in a stage the blocks earned, or in one claimed early
                 unearned = claimed > trace.max_progress
                 self.add("unearned_step", [float(unearned)])
+                self.add("overpaid_step", [float(claimed > progress)])
                 if PARTS["intrinsic"] in info:
                     self.add(f"intrinsic_{'unearned' if unearned else 'earned'}", [info[PARTS["intrinsic"]]])
             if dones[index]:
@@ -112,7 +119,9 @@ class RewardDiagnostics:
                     episode["unearned_completion"] = trace.unearned_completion
                     episode["early_claim"] = trace.early_claim
                     episode["unplaced_claim"] = trace.unplaced_claim
+                    episode["never_placed_claim"] = trace.never_placed_claim
                     episode["missed"] = trace.max_progress > trace.max_claimed
+                    episode["ends_overclaimed"] = claimed > progress
                 self.episodes.append(episode)
                 self.traces[index] = EpisodeTrace()
 
@@ -128,7 +137,7 @@ class RewardDiagnostics:
             result.update({f"{name}_share": size / sum(sizes.values()) for name, size in sizes.items()})
         if self.episodes:
             keys = ("final_progress", "max_progress", "false_completion", "unearned_completion")
-            for key in (*keys, "early_claim", "unplaced_claim", "missed"):
+            for key in (*keys, "early_claim", "unplaced_claim", "never_placed_claim", "missed", "ends_overclaimed"):
                 values = [episode[key] for episode in self.episodes if key in episode]
                 if values:
                     name = f"{key}_rate" if isinstance(values[0], bool) else f"{key}_mean"

@@ -37,11 +37,13 @@ class ReferenceResult:
 @dataclass(frozen=True)
 class MethodConfig:
     """One method of an experiment grid: the inest-train flags that make it, the reward model
-    folder it reads (none for the oracle) and, optionally, a published result to compare with."""
+    folder it reads (none for the oracle), optionally a published result to compare with, and its
+    own seeds where it needs more than the grid's (a headline row: 5)."""
 
     args: tuple[str, ...] = ()
     model: str | None = None
     reference: ReferenceResult | None = None
+    seeds: tuple[int, ...] | None = None  # None: the grid's
 
     def check(self, name: str) -> None:
         if not METHOD_NAME.fullmatch(name):
@@ -55,6 +57,15 @@ class MethodConfig:
             raise ValueError(f"method {name}: model must be a folder path, got {self.model!r}")
         if self.reference is not None:
             self.reference.check(name)
+        if self.seeds is not None:
+            check_seeds(self.seeds, f"method {name}: ")
+
+
+def check_seeds(seeds: tuple[int, ...], where: str = "") -> None:
+    if not seeds or not all(type(seed) is int and seed >= 0 for seed in seeds):
+        raise ValueError(f"{where}seeds must be a non-empty list of integers >= 0, got {list(seeds)}")
+    if len(set(seeds)) != len(seeds):
+        raise ValueError(f"{where}seeds must differ, got {list(seeds)}")
 
 
 def check_cell_text(text: object, what: str) -> None:
@@ -96,10 +107,7 @@ class GridConfig:
             raise ValueError("the grid lists no methods")
         for name, method in self.methods.items():
             method.check(name)
-        if not self.seeds or not all(type(seed) is int and seed >= 0 for seed in self.seeds):
-            raise ValueError(f"seeds must be a non-empty list of integers >= 0, got {list(self.seeds)}")
-        if len(set(self.seeds)) != len(self.seeds):
-            raise ValueError(f"seeds must differ, got {list(self.seeds)}")
+        check_seeds(self.seeds)
         if type(self.total_steps) is not int or self.total_steps <= 0:
             raise ValueError(f"total_steps must be a positive integer, got {self.total_steps!r}")
         for name in ("config", "out"):
@@ -145,7 +153,10 @@ class GridConfig:
                 if "score" not in reference:
                     raise ValueError(f"method {name}: reference needs a score")
                 reference = ReferenceResult(**reference)
-            parsed[str(name)] = MethodConfig(args=tuple(args), model=method.get("model"), reference=reference)
+            seeds = method.get("seeds")
+            if seeds is not None:
+                seeds = tuple(seeds) if isinstance(seeds, list) else (seeds,)
+            parsed[str(name)] = MethodConfig(tuple(args), method.get("model"), reference, seeds)
         values["methods"] = parsed
         tables = values.get("tables")
         if tables is not None and not isinstance(tables, dict):
@@ -161,6 +172,10 @@ class GridConfig:
             seeds = values["seeds"]
             values["seeds"] = tuple(seeds) if isinstance(seeds, list) else (seeds,)
         return cls(**values)
+
+    def seeds_of(self, method: str) -> tuple[int, ...]:
+        """The seeds `method` runs with: its own, or the grid's."""
+        return self.methods[method].seeds or self.seeds
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> GridConfig:

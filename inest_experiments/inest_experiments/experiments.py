@@ -143,7 +143,7 @@ def plan(grid: GridConfig, selected: list[str], workdir: Path) -> list[Cell]:
     for method in selected or list(grid.methods):
         spec = grid.methods[method]
         model_args = ["--model", str(workdir / spec.model)] if spec.model is not None else []
-        for seed in grid.seeds:
+        for seed in grid.seeds_of(method):
             run_dir = out / method / f"seed{seed}"
             args = ("--config", str(config), "--out", str(run_dir), "--seed", str(seed), "--threads", "1")
             args += ("--total-steps", str(grid.total_steps), *model_args, *spec.args)
@@ -305,9 +305,9 @@ def method_table(methods: list[str], summary: dict[str, Any], grid: GridConfig |
         f"| validation score | labelled episodes | cameras |{label}",
         "|---|---|---|---|---|---|---|---|---|---|" + ("---|" if label else ""),
     ]
-    expected = len(grid.seeds) if grid else None
     for method in methods:
         entry = summary["methods"].get(method)
+        expected = len(grid.seeds_of(method)) if grid and method in grid.methods else None
         seeds = f"{entry['seeds'] if entry else 0}" + (f" of {expected}" if expected else "")
         reference = [reference_cell(references.get(method))] if label else []
         if entry is None:
@@ -379,6 +379,7 @@ DIAGNOSTIC_COLUMNS = {
     "episodes with an unearned completion": "unearned_completion_rate",
     "... claimed early, then earned": "early_claim_rate",
     "... never placed in time": "unplaced_claim_rate",
+    "... never placed in the episode": "never_placed_claim_rate",
     "episodes with a placed block never claimed": "missed_rate",
 }
 
@@ -480,7 +481,7 @@ def write_report(out: Path, grid: GridConfig | None) -> Path:
             )
     if grid:
         started = {f"{row['method']}/{row['run']}" for row in summary["runs"]}
-        missing = [f"{m}/seed{s}" for m in grid.methods for s in grid.seeds if f"{m}/seed{s}" not in started]
+        missing = [f"{m}/seed{s}" for m in grid.methods for s in grid.seeds_of(m) if f"{m}/seed{s}" not in started]
         if missing:
             lines += ["", f"Not started, or before their first evaluation: {', '.join(missing)}."]
     lines += diagnostics_table(methods, [row for row in summary["runs"] if row["final"]])

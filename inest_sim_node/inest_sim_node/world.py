@@ -18,6 +18,7 @@ from .config import LayoutConfig, WorldConfig
 
 BLOCK_COLOURS = ("red", "blue", "yellow")  # also the order in which they must reach the goal
 FINGER_SIDES = (-1, 1)  # left, right (seen from behind the robot)
+BLOCK_ROUNDING = 0.01  # a block's corner radius, in block sides
 BODY_ORDER = (*BLOCK_COLOURS, "left_finger", "right_finger", "robot")  # rows of World.body_poses
 _ROBOT_GROUP = 1
 _FINGER_MAX_RATE = 3.0  # rad/s: the fingers open or close fully within about one control step
@@ -43,6 +44,15 @@ def sample_layout(layout: LayoutConfig, rng: np.random.Generator) -> Layout:
     robot_xy = np.asarray(layout.robot_start) + rng.uniform(-layout.robot_jitter, layout.robot_jitter, size=2)
     robot_angle = rng.uniform(-layout.robot_angle_jitter, layout.robot_angle_jitter)
     return Layout(block_xy, (float(robot_xy[0]), float(robot_xy[1])), float(robot_angle))
+
+
+def pose_goal_gaps(poses: np.ndarray, config: WorldConfig) -> np.ndarray:
+    """World.block_goal_gaps of recorded poses (World.body_poses rows): each square block's
+    bounding box from its angle and rounded corners, for episodes kept as poses rather than as a live world."""
+    angle, y = poses[: len(BLOCK_COLOURS), 0], poses[: len(BLOCK_COLOURS), 2]
+    reach = config.block_side / 2 * (np.abs(np.cos(angle)) + np.abs(np.sin(angle)))
+    bottom = y - reach - BLOCK_ROUNDING * config.block_side
+    return np.maximum(0.0, config.goal_bottom - bottom)
 
 
 def finger_polygons(config: WorldConfig, side: int) -> list[list[tuple[float, float]]]:
@@ -98,7 +108,7 @@ class World:
         body = pymunk.Body()
         body.position = xy
         side = self.config.block_side
-        shape = pymunk.Poly.create_box(body, (side, side), 0.01 * side)
+        shape = pymunk.Poly.create_box(body, (side, side), BLOCK_ROUNDING * side)
         shape.mass = self.config.block_mass
         shape.friction = 0.5
         slide = pymunk.PivotJoint(self.space.static_body, body, (0, 0), (0, 0))

@@ -56,19 +56,7 @@ else
 fi
 timed template "$BIN/inest-label-clips" "$WORK/rollouts.npz" --template "$WORK/labels.csv" --sheets "$WORK/sheets"
 # the person's step, done here from the simulator's truth: one row per change of the blocks placed
-"$BIN/python" - "$WORK/rollouts.npz" "$WORK/labels.csv" <<'EOF'
-import sys
-
-import numpy as np
-
-with np.load(sys.argv[1]) as data:
-    rows = ["episode,frame,blocks"]
-    for episode in range(sum(key.startswith("frames_") for key in data.files)):
-        progress = data[f"progress_{episode}"]
-        changes = [0, *(int(i) for i in np.flatnonzero(np.diff(progress)) + 1)]
-        rows += [f"{episode},{frame},{int(progress[frame])}" for frame in changes]
-open(sys.argv[2], "w").write("\n".join(rows) + "\n")
-EOF
+"$BIN/python" scripts/experiments/truth_labels.py "$WORK/rollouts.npz" "$WORK/labels.csv"
 timed label "$BIN/inest-label-clips" "$WORK/rollouts.npz" "$WORK/labels.csv" --out "$LABELLED"
 timed recalibrate "$BIN/inest-pretrain" runs/demos --out "$WORK/refit" --recalibrate results/long-horizon/reward-model \
   --random-episodes 0 --wrong-order-episodes 0 --clips "$LABELLED" "${RAISE[@]}" \

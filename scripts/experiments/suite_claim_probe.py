@@ -17,21 +17,13 @@ from pathlib import Path
 import numpy as np
 from inest_reward_node.learning.exploit_check import run_reward_settings
 from inest_reward_node.learning.exploit_suite import SUITE_DIR, load_part, suite_file
-from inest_reward_node.learning.quality import SETTLE_FRAMES, negative_events, reward_config, stage_camera
-from inest_reward_node.runtime.methods import default_variant
+from inest_reward_node.learning.quality import reward_config, suite_events
 from inest_reward_node.runtime.model import load_model
 from inest_sim_node.render import PALETTE
 from inest_sim_node.subtasks import completed_subtasks
-from inest_sim_node.world import BLOCK_COLOURS
+from inest_sim_node.world import BLOCK_COLOURS, pose_goal_gaps
 
 SCHEME = 3
-
-
-def block_gaps(poses: np.ndarray, side: float, goal_bottom: float) -> np.ndarray:
-    """(blocks,) how far each block's bounding box sticks out below the goal (World.block_goal_gaps)."""
-    angle, y = poses[: len(BLOCK_COLOURS), 0], poses[: len(BLOCK_COLOURS), 2]
-    bottom = y - side / 2 * (np.abs(np.cos(angle)) + np.abs(np.sin(angle)))
-    return np.maximum(0.0, goal_bottom - bottom)
 
 
 def shows(frame: np.ndarray, colour: str) -> bool:
@@ -42,21 +34,15 @@ def main(model_dir: str, run: str, out: str, part_name: str = "development") -> 
     model = load_model(model_dir)
     options = {"config": reward_config(run_reward_settings(Path(run)))}
     part = load_part(suite_file(SUITE_DIR, part_name))
-    clips = part.clips(model.view, model.image_size, SETTLE_FRAMES)
-    camera = stage_camera(model, [SCHEME], options)
-    seen = clips if camera is None else part.clips(camera, model.image_size, SETTLE_FRAMES)
-    embeddings = [model.embed(clip.frames) for clip in clips]
-    events = negative_events(model, clips, embeddings, SCHEME, default_variant(model, SCHEME), options, seen)
-    world = part.world
     claims = []
-    for episode, clip, row in zip(part.episodes, clips, events, strict=True):
+    for episode, clip, replays in suite_events(model, part, [SCHEME], options):
         done = completed_subtasks(clip.progress, clip.held, SCHEME)
-        for k, frames in enumerate(row):
+        for k, frames in enumerate(replays[SCHEME].claims()):
             if done[-1] > k:
                 continue  # earned in the end: early at worst
             for frame in frames:
                 step = min(frame, len(episode.poses) - 1)
-                gap = float(block_gaps(episode.poses[step], world.block_side, world.goal_bottom)[k])
+                gap = float(pose_goal_gaps(episode.poses[step], part.world)[k])
                 claims.append(
                     {
                         "policy": episode.policy,
@@ -75,7 +61,7 @@ def main(model_dir: str, run: str, out: str, part_name: str = "development") -> 
         "part": part_name,
         "unplaced_claim_events": len(claims),
         "gap_quartiles": np.percentile(gaps, [25, 50, 75]).round(3).tolist() if len(gaps) else None,
-        "share_gap_below_half_block": float(np.mean(gaps < world.block_side / 2)) if len(gaps) else None,
+        "share_gap_below_half_block": float(np.mean(gaps < part.world.block_side / 2)) if len(gaps) else None,
         "share_block_in_view": float(np.mean([claim["block_in_view"] for claim in claims])) if claims else None,
         "share_goal_in_view": float(np.mean([claim["goal_in_view"] for claim in claims])) if claims else None,
         "claims": claims,

@@ -245,17 +245,18 @@ def stage_head_episodes(config: PretrainConfig, demos: list[Demo], plays: list[C
     reads. `plays`: the calibration's random, wrong-order and clip-file play in the encoder's
     camera. A head of another camera sees the same demonstrations and the same random and
     wrong-order episodes (their seeds fix them) through its own; clip files record one camera,
-    so it is fitted without them."""
+    so it is fitted without the encoder's and with `stage_head_clips`, recorded through its own."""
     head = config.calibration.stage_head
     view = head.view or config.view
-    if view == config.view:
-        return demos[: head.max_demos], plays
     size = config.encoder.image_size
     calibration = config.calibration
+    own = [clip for path in calibration.stage_head_clips for clip in load_clips(path, view, size)]
+    if view == config.view:
+        return demos[: head.max_demos], plays + own
     labelled = load_demos(config.dataset, "train", view, size, min(head.max_demos, len(demos)), progress_bar=False)
     return labelled, random_play(view, size, calibration.random_episodes) + wrong_order_play(
         view, size, calibration.wrong_order_episodes
-    )
+    ) + own
 
 
 def supervision(
@@ -273,11 +274,13 @@ def supervision(
         "random_play": {"episodes": calibration.random_episodes, "labelled_by": "simulator"},
         "wrong_order": {"episodes": calibration.wrong_order_episodes, "labelled_by": "simulator"},
     }
-    for path in calibration.clips:
-        episodes, labelled_by = clip_file_labels(path)
-        negatives[f"clips:{path}"] = {"episodes": episodes, "labelled_by": labelled_by}
     head = calibration.stage_head
     heads = [scheme for scheme in calibration.stage_head_subtasks if scheme in schemes] if head.iterations else []
+    files = [("clips", path) for path in calibration.clips]
+    files += [("stage-head-clips", path) for path in calibration.stage_head_clips] if heads else []
+    for kind, path in files:
+        episodes, labelled_by = clip_file_labels(path)
+        negatives[f"{kind}:{path}"] = {"episodes": episodes, "labelled_by": labelled_by}
     cameras = [config.view] + ([head.view] if heads and head.view not in (None, config.view) else [])
     return {
         "demonstrations": {"episodes": demonstrations, "segmented_by": segmented_by},

@@ -65,6 +65,9 @@ class CalibrationConfig:
     # the subtask schemes that get a pixel stage head (each costs `stage_head.iterations`); a scheme
     # without one reads the embedding's stage classifier (reward.stage_evidence auto)
     stage_head_subtasks: tuple[Literal[TCC_SCHEMES], ...] = TCC_SCHEMES
+    # labelled clip files recorded through the pixel stage head's camera (inest-label-clips), for
+    # the head alone: a scene-camera head's negatives where the simulator labels none
+    stage_head_clips: tuple[str, ...] = ()
     # the window stage classifier (runtime/stage_window.py): the frames back it reads, () for none;
     # fitted on the same frames as the stage classifier and on `demo_negatives` rewound and as many
     # reordered demonstrations (demo_negatives.py), which need no labels of their own

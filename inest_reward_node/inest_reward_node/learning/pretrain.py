@@ -201,8 +201,11 @@ class Pretrainer:
 
 def refuse_unfit_clips(config: PretrainConfig) -> None:
     """Read every clip file before any work, so that one that does not fit fails first, not after."""
-    for path in config.calibration.clips:
+    calibration = config.calibration
+    for path in calibration.clips:
         load_clips(path, config.view, config.encoder.image_size)
+    for path in calibration.stage_head_clips:
+        load_clips(path, calibration.stage_head.view or config.view, config.encoder.image_size)
 
 
 def load_split(config: PretrainConfig, split: str, progress_bar: bool) -> list[Demo]:

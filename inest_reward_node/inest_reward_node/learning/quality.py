@@ -66,7 +66,7 @@ import dataclasses
 import json
 import math
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -86,7 +86,17 @@ from ..runtime.rewards import Replay, RewardScorer, replay
 from .calibrate import describe_supervision, recorded_supervision, subtask_starts
 from .clips import Clip, ClipError, load_clips, random_play, wrong_order_play
 from .data import Demo, load_demos
-from .exploit_suite import SUITE_DIR, SuitePart, claims, load_part, suite_file, summarise_claims
+from .exploit_suite import (
+    SUITE_DIR,
+    SuiteEpisode,
+    SuitePart,
+    claims,
+    load_part,
+    pay,
+    suite_file,
+    summarise_claims,
+    summarise_pay,
+)
 from .task_stages import demo_stages, true_stages
 
 REPORT_FILE = "report.json"
@@ -232,13 +242,12 @@ def negative_events(
     """Per negative episode, a fresh scorer's completion frames of every subtask
     (Replay.completion_events). `stage_episodes`: the same episodes through the stage head's
     camera, when it is another."""
-    num_subtasks = len(model.goals(scheme).goals)
     events = []
     seen = stage_episodes or episodes
     for episode, embedded, viewed in zip(episodes, embeddings, seen, strict=True):
         stages = true_stages(episode.progress, episode.held, scheme)
         played = replay(model, embedded, scheme, variant, scorer_options, viewed.frames, stages)
-        events.append([played.completion_events(k) for k in range(num_subtasks)])
+        events.append(played.claims())
     return events
 
 
@@ -248,6 +257,70 @@ def event_flags(events: list[list[list[int]]], episodes: list[Clip], scheme: int
     return np.stack(rows) if rows else np.zeros((0, 0), dtype=bool)
 
 
+@dataclass
+class Negatives:
+    """Negative episodes per kind through the encoder's camera (`clips`) and the stage head's
+    (`seen`, the same episodes when it is the encoder's), with their embeddings."""
+
+    clips: dict[str, list[Clip]]
+    seen: dict[str, list[Clip]]
+    embeddings: dict[str, list[np.ndarray]]
+
+    def events(
+        self, model: RewardModel, scheme: int, variant: str, scorer_options: dict[str, Any] | None
+    ) -> dict[str, list[list[list[int]]]]:
+        """Per kind, negative_events of every episode."""
+        return {
+            kind: negative_events(model, clips, self.embeddings[kind], scheme, variant, scorer_options, self.seen[kind])
+            for kind, clips in self.clips.items()
+        }
+
+
+def play_negatives(
+    model: RewardModel,
+    camera: str | None,
+    episodes: int,
+    clip_files: Sequence[str] = (),
+    seed_offset: int = 0,
+) -> Negatives:
+    """record_negatives through the model's camera and, when the stage head reads `camera`, through it too."""
+    clips = record_negatives(model.view, model.image_size, episodes, clip_files, seed_offset)
+    seen = clips if camera is None else record_negatives(camera, model.image_size, episodes, seed_offset=seed_offset)
+    embeddings = {kind: [model.embed(clip.frames) for clip in kind_clips] for kind, kind_clips in clips.items()}
+    return Negatives(clips, seen, embeddings)
+
+
+def suite_events(
+    model: RewardModel,
+    part: SuitePart,
+    schemes: list[int],
+    scorer_options: dict[str, Any] | None = None,
+    progress_bar: bool = True,
+) -> Iterator[tuple[SuiteEpisode, Clip, dict[int, Replay]]]:
+    """Per episode of the exploit suite `part`, one at a time: the episode, its clip through the
+    model's camera (then SETTLE_FRAMES copies of its last frame, as demonstrations are replayed)
+    and, per scheme, the scheme's default reward replayed over it (Replay.completion_events: the
+    claims; Replay.completed: the pay)."""
+    camera = stage_camera(model, schemes, scorer_options)
+    for episode in track(part.episodes, desc="exploit suite", disable=not progress_bar):
+        clip = part.clip(episode, model.view, model.image_size, SETTLE_FRAMES)
+        seen = clip if camera is None else part.clip(episode, camera, model.image_size, SETTLE_FRAMES)
+        embeddings = model.embed(clip.frames)
+        replays = {
+            scheme: replay(
+                model,
+                embeddings,
+                scheme,
+                default_variant(model, scheme),
+                scorer_options,
+                seen.frames,
+                true_stages(clip.progress, clip.held, scheme),
+            )
+            for scheme in schemes
+        }
+        yield episode, clip, replays
+
+
 def suite_report(
     model: RewardModel,
     part: SuitePart,
@@ -255,21 +328,18 @@ def suite_report(
     scorer_options: dict[str, Any] | None = None,
     progress_bar: bool = True,
 ) -> dict[str, Any]:
-    """Per scheme, the claims of the scheme's default reward on the exploit suite `part`
-    (exploit_suite.summarise_claims), every episode seen through the model's cameras and then
-    SETTLE_FRAMES copies of its last frame, as demonstrations are replayed; one episode in memory at a time."""
-    camera = stage_camera(model, schemes, scorer_options)
+    """Per scheme, the claims (exploit_suite.summarise_claims) and the pay (summarise_pay) of the
+    scheme's default reward on the exploit suite `part`, over suite_events."""
     rows: dict[int, list[dict[str, np.ndarray]]] = {scheme: [] for scheme in schemes}
-    for episode in track(part.episodes, desc="exploit suite", disable=not progress_bar):
-        clip = part.clip(episode, model.view, model.image_size, SETTLE_FRAMES)
-        seen = clip if camera is None else part.clip(episode, camera, model.image_size, SETTLE_FRAMES)
-        embeddings = model.embed(clip.frames)
-        for scheme in schemes:
-            variant = default_variant(model, scheme)
-            events = negative_events(model, [clip], [embeddings], scheme, variant, scorer_options, [seen])[0]
-            rows[scheme].append(claims(events, clip, scheme))
+    paid: dict[int, list[dict[str, int]]] = {scheme: [] for scheme in schemes}
+    for _, clip, replays in suite_events(model, part, schemes, scorer_options, progress_bar):
+        for scheme, played in replays.items():
+            rows[scheme].append(claims(played.claims(), clip, scheme))
+            paid[scheme].append(pay(played.completed, clip, scheme))
     policies = [episode.policy for episode in part.episodes]
-    schemes_report = {str(scheme): summarise_claims(rows[scheme], policies) for scheme in schemes}
+    schemes_report = {
+        str(scheme): summarise_claims(rows[scheme], policies) | summarise_pay(paid[scheme]) for scheme in schemes
+    }
     return {**part.describe(), "schemes": schemes_report}
 
 
@@ -283,6 +353,11 @@ def format_suite(suite: dict[str, Any]) -> list[str]:
         lines.append(
             f"  {scheme} subtasks: unplaced claim of any subtask in {row['unplaced_claim_any']:.1%} of episodes"
         )
+        if "overpaid_frame_share" in row:  # scores made before the pay was measured lack it
+            lines.append(
+                f"  paid for a block not in the goal on {row['overpaid_frame_share']:.1%} of frames, short on "
+                f"{row['underpaid_frame_share']:.1%}; episodes ending overclaimed {row['ends_overclaimed_rate']:.1%}"
+            )
         for sub in row["per_subtask"]:
             cells = [_number(sub[key], ".1%", 8) for key in ("unplaced_claim_rate", "early_claim_rate", "miss_rate")]
             name = subtask_name(int(scheme), sub["subtask"])
@@ -653,15 +728,9 @@ def evaluate(
         model.embed(demo.frames) for demo in track(demos, desc="embedding", disable=not progress_bar, leave=False)
     ]
     with track(total=1, desc="negative episodes", disable=not progress_bar, leave=False) as bar:
-        negatives = record_negatives(model.view, model.image_size, negative_episodes, clip_files, negative_seed_offset)
-        if camera is None:
-            seen = negatives
-        else:
-            seen = record_negatives(camera, model.image_size, negative_episodes, seed_offset=negative_seed_offset)
+        played = play_negatives(model, camera, negative_episodes, clip_files, negative_seed_offset)
         bar.update(1)
-    negative_embeddings = {
-        kind: [model.embed(episode.frames) for episode in episodes] for kind, episodes in negatives.items()
-    }
+    negatives = played.clips
     report: dict[str, Any] = {
         "model": described_model(model),
         "supervision": recorded_supervision(model.metadata),
@@ -678,12 +747,7 @@ def evaluate(
             demo_quality(model, demo, emb, scheme, variant, scorer_options, frames)
             for demo, emb, frames in zip(demos, embeddings, stage_frames or [None] * len(demos), strict=True)
         ]
-        events = {
-            kind: negative_events(
-                model, negatives[kind], negative_embeddings[kind], scheme, variant, scorer_options, seen[kind]
-            )
-            for kind in negatives
-        }
+        events = played.events(model, scheme, variant, scorer_options)
         flags = {kind: event_flags(events[kind], negatives[kind], scheme) for kind in negatives}
         not_early = {kind: event_flags(events[kind], negatives[kind], scheme, NOT_EARLY_AFTER) for kind in negatives}
         summary = {"variant": variant, "scorer": scorer, **summarise(results)}

@@ -55,6 +55,12 @@ class RewardConfig:
     confirm_steps: int = 0
     # P(stage >= j) at which one frame confirms a completion at once, ahead of confirm_steps; 1: off
     instant_confidence: float = 0.9
+    # the confirmed tracker takes back the last completed subtask c when its stage evidence says
+    # P(stage >= c) < retract_confidence for retract_steps frames in a row: a claim pays only while
+    # the evidence still stands behind it; 0: off (a claim stands until its frames look like its first half)
+    retract_confidence: float = 0.0
+    # frames in a row the stage evidence must deny a completed subtask to take it back; 0: hold_steps
+    retract_steps: int = 0
     # the weighted novelty bonus (after the post-switch boost) is clipped to at most this; None: no clip
     intrinsic_cap: float | None = None
     # a frame is evidence of a stage above the completed ones only within the demonstrations'
@@ -84,6 +90,13 @@ class RewardConfig:
                 f"instant_confidence must be in [stage_confidence, 1] = [{self.stage_confidence}, 1] (1: off), "
                 f"got {self.instant_confidence}"
             )
+        if not 0.0 <= self.retract_confidence < self.stage_confidence:
+            raise ValueError(
+                f"retract_confidence must be in [0, stage_confidence) = [0, {self.stage_confidence}) (0: off), "
+                f"got {self.retract_confidence}"
+            )
+        if self.retract_steps < 0:
+            raise ValueError(f"retract_steps must be >= 0 (0: hold_steps), got {self.retract_steps}")
         if not (self.filter_advance > 0 and self.filter_regress >= 0 and self.filter_advance + self.filter_regress < 1):
             raise ValueError(
                 "need 0 < filter_advance, 0 <= filter_regress and filter_advance + filter_regress < 1, "

@@ -425,6 +425,10 @@ class Replay:
         done = self.parts.completed > subtask
         return np.flatnonzero(done & ~np.concatenate([[False], done[:-1]])).tolist()
 
+    def claims(self) -> list[list[int]]:
+        """completion_events of every subtask, in order."""
+        return [self.completion_events(k) for k in range(self.num_subtasks)]
+
     @property
     def completion_frames(self) -> list[int]:
         """For each subtask in order, the frame on which the tracker first marked it done (for a latched

@@ -25,6 +25,8 @@ class TrackerSettings(Protocol):
     confirm_window: int
     confirm_steps: int
     instant_confidence: float
+    retract_confidence: float
+    retract_steps: int
 
 
 class Evidence(NamedTuple):
@@ -128,16 +130,25 @@ class ThresholdTracker(StageTracker):
 @dataclass(frozen=True)
 class ConfirmSettings:
     """The confirmed tracker's own settings (RewardConfig's stage_confidence, confirm_window,
-    confirm_steps and instant_confidence; see there)."""
+    confirm_steps, instant_confidence, retract_confidence and retract_steps; see there)."""
 
     confidence: float
     window: int
     agree_steps: int  # 0: hold_steps
     instant: float  # 1: off
+    retract: float = 0.0  # 0: off
+    retract_steps: int = 0  # 0: hold_steps
 
     @classmethod
     def of(cls, config: TrackerSettings) -> ConfirmSettings:
-        return cls(config.stage_confidence, config.confirm_window, config.confirm_steps, config.instant_confidence)
+        return cls(
+            config.stage_confidence,
+            config.confirm_window,
+            config.confirm_steps,
+            config.instant_confidence,
+            config.retract_confidence,
+            config.retract_steps,
+        )
 
 
 class ConfirmedTracker(ThresholdTracker):
@@ -149,7 +160,10 @@ class ConfirmedTracker(ThresholdTracker):
     Reopens: the last completed subtask c - 1 counts as undone once, for `hold_steps` frames,
     the frame no longer passes its goal's test and sits nearer that subtask's start than its
     goal (segment closeness below REOPEN_BELOW): it looks like the first half of subtask c - 1
-    again. Each test alone is fooled by different frames; together they are what makes the
+    again; or, with `retract` above 0, once the stage evidence has said P(stage >= c) < retract
+    for `retract_steps` frames in a row (default `hold_steps`): a claim the evidence no longer
+    backs stops paying, so a policy gains from a fooled frame only while it keeps fooling. Each
+    test alone is fooled by different frames; together they are what makes the
     tracker honest (measured in docs/reports/reward-signal.md)."""
 
     reads = frozenset({"rewards", "segments", "at_least"})
@@ -158,6 +172,7 @@ class ConfirmedTracker(ThresholdTracker):
         self.confidence, self.window = settings.confidence, settings.window
         self.instant = settings.instant if settings.instant < 1.0 else math.inf
         self.agree_steps = settings.agree_steps or hold_steps
+        self.retract, self.retract_steps = settings.retract, settings.retract_steps or hold_steps
         super().__init__(thresholds, hold_steps)
 
     @classmethod
@@ -168,6 +183,7 @@ class ConfirmedTracker(ThresholdTracker):
         super().reset()
         self.waited = -1  # frames since the threshold test held (-1: it has not)
         self.agreed = 0
+        self.denied = 0  # frames in a row the stage evidence has denied the last completed subtask
 
     def undone(self, rewards: np.ndarray, segments: np.ndarray) -> bool:
         c = self.completed
@@ -186,16 +202,17 @@ class ConfirmedTracker(ThresholdTracker):
             self.agreed = self.agreed + 1 if at_least[c + 1] >= self.confidence else 0
             certain = at_least[c + 1] >= self.instant
         self.down_streak = self.down_streak + 1 if self.undone(rewards, evidence.segments) else 0
+        self.denied = self.denied + 1 if c > 0 and at_least[c] < self.retract else 0
         change = 0
         if self.waited >= 0 and (self.agreed >= self.agree_steps or certain):
             self.completed, change = c + 1, 1
-        elif self.down_streak >= self.hold_steps:
+        elif self.down_streak >= self.hold_steps or self.denied >= self.retract_steps:
             self.completed, change = c - 1, -1
         elif self.waited > self.window:
             self.waited, self.agreed = -1, 0  # not confirmed in time: wait for the test to hold again
             return 0
         if change:
-            self.up_streak = self.down_streak = self.agreed = 0
+            self.up_streak = self.down_streak = self.agreed = self.denied = 0
             self.waited = -1
         return change
 

@@ -22,8 +22,9 @@ flood of them cannot delay valid ones; the stamp policy is serving.py's.
 
 Parameters: the RewardNodeConfig fields, `intrinsic.*` (IntrinsicConfig) and `reward.*`
 (runtime.config.RewardConfig: shaping, tracker, stage_source, stage_evidence, hold_steps,
-stage_confidence, confirm_window, confirm_steps, instant_confidence, intrinsic_cap, stage_filter,
-filter_advance, filter_regress, filter_temperature;
+stage_confidence, confirm_window, confirm_steps, instant_confidence, retract_confidence,
+retract_steps, intrinsic_cap, stage_support, stage_filter, filter_advance, filter_regress,
+filter_temperature;
 `reward.intrinsic_cap:=.inf` is no cap). `reward.stage_source:=privileged`
 is refused: the node sees images only, not the simulator's progress.
 """

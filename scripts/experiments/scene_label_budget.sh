@@ -6,19 +6,20 @@
 # scene camera and labelled through the label-file path: template and contact sheets
 # (inest-label-clips), the label file (here filled from the simulator's truth by
 # scripts/experiments/truth_labels.py, the person's stand-in: its row count is what a person
-# writes), the labelled clip file (--stage-head-clips). Each step's seconds, frames and label rows
-# go to OUT/timings.json; the model to OUT/model, scored on the exploit suite's development part
+# writes), the labelled clip file (--stage-head-clips); with none (0 0), the demonstrations
+# alone. Each step's seconds, frames and label rows go to OUT/timings.json; the model to
+# OUT/model, scored on the exploit suite's development part
 # (OUT/suite*.json, with and without the tracker's retraction) and by inest-reward-quality on the
 # validation demonstrations and the selection set's play (OUT/quality*).
 #   bash scripts/experiments/scene_label_budget.sh WRONG RANDOM [OUT]
-#   (OUT default results/robot-reward-v2/scene-labels<WRONG+RANDOM>)
+#   (OUT default results/robot-reward-v2/scene-wrong<WRONG>-random<RANDOM>)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$ROOT"
 BIN="${INEST_VENV:-$ROOT/.venv}/bin"
 WRONG=${1:?usage: scene_label_budget.sh WRONG RANDOM [OUT]}
 RANDOM_EPISODES=${2:?usage: scene_label_budget.sh WRONG RANDOM [OUT]}
-NAME=scene-labels$((WRONG + RANDOM_EPISODES))
+NAME=scene-wrong$WRONG-random$RANDOM_EPISODES
 OUT=${3:-results/robot-reward-v2/$NAME}
 WORK=runs/scene-labels/$NAME
 SCENE_RUN=results/robot-reward/inest3-scene/seed0  # the reward settings the suite scores with
@@ -44,7 +45,9 @@ clips = wrong_order_play("allo", 96, wrong) + random_play("allo", 96, random)
 save_clips(out, clips, "allo", f"{wrong} wrong-order and {random} random-play episodes, scene camera")
 PY
 }
-if [ ! -f "$OUT/labelled.npz" ]; then
+CLIPS=(--stage-head-clips "$OUT/labelled.npz")
+[ $((WRONG + RANDOM_EPISODES)) -gt 0 ] || CLIPS=()  # no labelled episode: the demonstrations alone
+if [ ${#CLIPS[@]} -gt 0 ] && [ ! -f "$OUT/labelled.npz" ]; then
   timed record record
   timed template "$BIN/inest-label-clips" "$WORK/rollouts.npz" --template "$WORK/labels.csv" --sheets "$WORK/sheets"
   "$BIN/python" scripts/experiments/truth_labels.py "$WORK/rollouts.npz" "$WORK/labels.csv"
@@ -54,8 +57,7 @@ fi
 if [ ! -f "$OUT/model/model.json" ]; then
   timed recalibrate "$BIN/inest-pretrain" runs/demos --out "$WORK/refit" \
     --recalibrate results/long-horizon/reward-model-scene96-600demos --random-episodes 0 --wrong-order-episodes 0 \
-    --stage-head-view allo --stage-head-image-size 96 --stage-head-subtasks 3 --stage-head-clips "$OUT/labelled.npz" \
-    --threads 1
+    --stage-head-view allo --stage-head-image-size 96 --stage-head-subtasks 3 "${CLIPS[@]}" --threads 1
   rm -rf "$OUT/model" && cp -r "$WORK/refit/model" "$OUT/model"
 fi
 [ -f "$OUT/suite.json" ] || "$BIN/inest-exploit-suite" "$OUT/model" --reward-of "$SCENE_RUN" --out "$OUT/suite.json" \
@@ -67,7 +69,7 @@ fi
 [ -f "$OUT/quality-retract10/report.json" ] || "$BIN/inest-reward-quality" "$OUT/model" runs/demos \
   --out "$OUT/quality-retract10" --schemes 3 --negative-seed-offset 2000000 --retract-confidence 0.1 \
   >"$OUT/quality-retract10.txt"
-[ -f "$OUT/timings.json" ] || "$BIN/python" - "$OUT" "$LOAD" "${STEPS[@]}" <<'PY'
+[ ${#CLIPS[@]} -eq 0 ] || [ -f "$OUT/timings.json" ] || "$BIN/python" - "$OUT" "$LOAD" "${STEPS[@]}" <<'PY'
 import json
 import os
 import sys

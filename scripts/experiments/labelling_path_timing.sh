@@ -26,17 +26,8 @@ OUT=results/robot-reward/labelling-path/$NAME
 rm -rf "$WORK" && mkdir -p "$WORK" "$OUT"
 # the budget's labelled episodes are committed beside their results (the agent check's model reads them)
 LABELLED=$([ "$NAME" = negatives ] && echo "$OUT/labelled.npz" || echo "$WORK/labelled.npz")
-LOAD=$(cut -d' ' -f1 /proc/loadavg)  # other work on the machine at the start, as its load average
-STEPS=()
-
-timed() {  # NAME COMMAND...: run it, keep its wall-clock seconds
-  local name=$1 start end
-  shift
-  start=$(date +%s.%N)
-  "$@" >"$WORK/$name.log" 2>&1
-  end=$(date +%s.%N)
-  STEPS+=("$name=$(echo "$end - $start" | bc)")
-}
+# shellcheck source=scripts/experiments/timed.sh
+source "$ROOT/scripts/experiments/timed.sh"  # timed NAME COMMAND..., STEPS, LOAD
 
 record_negatives() {  # the budget's episodes, on the layouts calibration plays them on
   "$BIN/python" -c '

@@ -24,16 +24,8 @@ OUT=${3:-results/robot-reward-v2/$NAME}
 WORK=runs/scene-labels/$NAME
 SCENE_RUN=results/robot-reward/inest3-scene/seed0  # the reward settings the suite scores with
 mkdir -p "$WORK" "$OUT"
-LOAD=$(cut -d' ' -f1 /proc/loadavg)
-STEPS=()
-timed() {  # NAME COMMAND...: run it, keep its wall-clock seconds
-  local name=$1 start end
-  shift
-  start=$(date +%s.%N)
-  "$@" >"$WORK/$name.log" 2>&1
-  end=$(date +%s.%N)
-  STEPS+=("$name=$(echo "$end - $start" | bc)")
-}
+# shellcheck source=scripts/experiments/timed.sh
+source "$ROOT/scripts/experiments/timed.sh"  # timed NAME COMMAND..., STEPS, LOAD
 record() {  # the episodes, through the scene camera, on the layouts calibration plays its own on
   "$BIN/python" - "$WORK/rollouts.npz" "$WRONG" "$RANDOM_EPISODES" <<'PY'
 import sys
